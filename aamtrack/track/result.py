@@ -1,0 +1,62 @@
+"""Plain result records of fitting and tracking (frozen dataclasses; a failure is a status, never None)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+STATUSES = ("detected", "tracked", "lost", "dropped", "unreadable")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """One active search on one image.
+
+    p : (n_params,) float64 -- final search vector (pose then deformation coefficients, see ``Model.param_names``)
+    landmarks : (68, 2) float64 -- iBUG-68 points in image pixels
+    vertices : (n_vertices, 2) float64 -- all model vertices in image pixels
+    residual : float -- final RMS of the normalised texture residual
+    iterations : tuple of int -- iterations run per couple, coarse to fine
+    errors : tuple of float -- final residual RMS per couple
+    """
+
+    p: np.ndarray
+    landmarks: np.ndarray
+    vertices: np.ndarray
+    residual: float
+    iterations: tuple = ()
+    errors: tuple = ()
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What the tracker says of one frame.
+
+    status : one of STATUSES. ``success`` is True for "detected" and "tracked".
+    landmarks : (68, 2) float64 image pixels, NaN where not successful
+    landmarks3d : (68, 3) float64 in the model's own frame (pose removed), 3D model only, else None
+    rotation : (3,) float64 radians (Rx, Ry, Rz); 2D model: (0, 0, roll)
+    translation : (2,) float64 pixels; scale : float (pixels per model unit)
+    anim_params, shape_params : 1-D float64, named by ``Model.anim_names`` / ``Model.shape_names``
+    vertices : (n_vertices, 2) float64 mesh vertices in pixels (for overlays), NaN where not successful
+    confidence : 0..1 from the texture residual
+    """
+
+    frame: int
+    timestamp: float
+    status: str
+    confidence: float = 0.0
+    landmarks: np.ndarray = field(default_factory=lambda: np.full((68, 2), np.nan))
+    landmarks3d: np.ndarray | None = None
+    rotation: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    translation: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
+    scale: float = float("nan")
+    anim_params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shape_params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    vertices: np.ndarray | None = None
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status in ("detected", "tracked")

@@ -1,0 +1,209 @@
+"""Frame sources: frame-exact reading of synthetic videos and image folders, and clear errors on bad input."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from conftest import SEED
+from iohelpers import HEIGHT, WIDTH, decode_index, index_image, make_video
+
+from aamtrack.errors import InputError
+from aamtrack.io import Frame, ImageFrames, VideoFrames, gray, open_frames
+
+CODECS = [("avi", "MJPG"), ("mp4", "mp4v")]
+
+
+@pytest.mark.parametrize("ext,fourcc", CODECS)
+def test_video_is_frame_exact(tmp_path, ext, fourcc):
+    n, fps = 37, 30.0
+    path = make_video(tmp_path / f"clip.{ext}", n, fourcc=fourcc, fps=fps, seed=SEED)
+    with open_frames(path) as source:
+        assert isinstance(source, VideoFrames)
+        assert (source.fps, source.n_frames, source.width, source.height) == (fps, n, WIDTH, HEIGHT)
+        frames = list(source)
+    assert [f.index for f in frames] == list(range(n))  # one item per frame, in order
+    assert [decode_index(f.image) for f in frames] == list(range(n))  # none skipped or repeated
+    np.testing.assert_allclose([f.timestamp for f in frames], np.arange(n) / fps, atol=1e-12)
+    assert all(f.image.shape == (HEIGHT, WIDTH, 3) and f.image.dtype == np.uint8 for f in frames)
+
+
+def test_video_reiterates_from_the_start(tmp_path):
+    path = make_video(tmp_path / "clip.avi", 9, fourcc="MJPG", seed=SEED)
+    with open_frames(path) as source:
+        first = [decode_index(f.image) for f in source]
+        again = [decode_index(f.image) for f in source]
+    assert first == again == list(range(9))
+
+
+def test_closed_source_refuses_iteration(tmp_path):
+    source = open_frames(make_video(tmp_path / "clip.avi", 3, fourcc="MJPG", seed=SEED))
+    source.close()
+    source.close()  # idempotent
+    with pytest.raises(ValueError, match="closed"):
+        iter(source)
+
+
+@pytest.mark.parametrize("size", [(320, 240), (64, 32)])
+def test_video_resize(tmp_path, size):
+    path = make_video(tmp_path / "clip.mp4", 5, fourcc="mp4v", seed=SEED)
+    with open_frames(path, resize=size) as source:
+        assert (source.width, source.height) == size
+        frames = list(source)
+    assert all(f.image.shape == (size[1], size[0], 3) for f in frames)
+    assert [decode_index(f.image) for f in frames] == list(range(5))  # the code survives up/down scaling
+
+
+def test_fps_override(tmp_path):
+    path = make_video(tmp_path / "clip.avi", 4, fourcc="MJPG", fps=30.0, seed=SEED)
+    with open_frames(path, fps=10.0) as source:
+        assert [f.timestamp for f in source] == [0.0, 0.1, 0.2, 0.3]
+
+
+def _write_pngs(folder, names, rng):
+    folder.mkdir(exist_ok=True)
+    for i, name in enumerate(names):
+        cv2.imwrite(str(folder / name), index_image(i, rng))
+
+
+def test_folder_in_natural_order(tmp_path):
+    rng = np.random.default_rng(SEED)
+    folder = tmp_path / "seq"
+    names = [f"frame{i}.png" for i in range(1, 13)]  # frame1 .. frame12: plain sorting puts frame10 second
+    _write_pngs(folder, names, rng)
+    (folder / "notes.txt").write_text("not an image")
+    with open_frames(folder) as source:
+        assert isinstance(source, ImageFrames)
+        assert (source.fps, source.n_frames, source.width, source.height) == (25.0, 12, WIDTH, HEIGHT)
+        assert [p.name for p in source.paths] == names
+        frames = list(source)
+    assert [decode_index(f.image) for f in frames] == list(range(12))  # PNG is lossless: exact
+    assert [f.timestamp for f in frames] == [i / 25.0 for i in range(12)]
+
+
+def test_glob_pattern_and_resize(tmp_path):
+    rng = np.random.default_rng(SEED)
+    _write_pngs(tmp_path, [f"img_{i}.png" for i in range(10)], rng)
+    cv2.imwrite(str(tmp_path / "other.jpg"), index_image(200, rng))  # not matched by the pattern
+    with open_frames(str(tmp_path / "img_*.png"), fps=50.0, resize=(256, 128)) as source:
+        frames = list(source)
+    assert source.n_frames == 10 and source.fps == 50.0
+    assert [decode_index(f.image) for f in frames] == list(range(10))
+    assert all(f.image.shape == (128, 256, 3) for f in frames)
+
+
+def test_single_image_is_one_frame(tmp_path):
+    rng = np.random.default_rng(SEED)
+    cv2.imwrite(str(tmp_path / "face.png"), index_image(5, rng))
+    frames = list(open_frames(tmp_path / "face.png"))
+    assert len(frames) == 1 and decode_index(frames[0].image) == 5
+
+
+def test_corrupt_image_in_folder_yields_none(tmp_path):
+    rng = np.random.default_rng(SEED)
+    _write_pngs(tmp_path, [f"f{i:02d}.png" for i in range(6)], rng)
+    (tmp_path / "f03.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
+    (tmp_path / "f04.png").write_bytes(b"")
+    frames = list(open_frames(tmp_path))
+    assert [f.index for f in frames] == list(range(6))
+    assert [f.image is None for f in frames] == [False, False, False, True, True, False]
+    assert [decode_index(f.image) for f in frames if f.image is not None] == [0, 1, 2, 5]
+
+
+def test_first_images_corrupt_still_sized_from_a_readable_one(tmp_path):
+    rng = np.random.default_rng(SEED)
+    _write_pngs(tmp_path, ["a1.png", "a2.png"], rng)
+    (tmp_path / "a0.png").write_bytes(b"garbage")
+    with open_frames(tmp_path) as source:
+        assert (source.width, source.height) == (WIDTH, HEIGHT)
+        assert [f.image is None for f in source] == [True, False, False]
+
+
+def test_gray():
+    rng = np.random.default_rng(SEED)
+    image = rng.integers(0, 256, size=(4, 5, 3), dtype=np.uint8)
+    g = gray(image)
+    assert g.shape == (4, 5) and g.dtype == np.uint8
+    expected = 0.114 * image[..., 0] + 0.587 * image[..., 1] + 0.299 * image[..., 2]  # BGR weights
+    assert np.abs(g - expected).max() <= 1.0
+    assert gray(g) is g
+    assert gray(np.dstack([image, image[..., :1]])).shape == (4, 5)
+
+
+def test_frame_record():
+    frame = Frame(3, 0.12, None)
+    assert (frame.index, frame.timestamp, frame.image) == (3, 0.12, None)
+
+
+# ---- bad input: InputError with a one-line message naming the file --------------------------------------------
+
+
+def _error(source) -> str:
+    with pytest.raises(InputError) as info:
+        open_frames(source)
+    message = str(info.value)
+    assert "\n" not in message
+    return message
+
+
+def test_missing_file_and_folder(tmp_path):
+    assert "nope.mp4" in _error(tmp_path / "nope.mp4") and "no such" in _error(tmp_path / "nope.mp4")
+    assert "no such" in _error(tmp_path / "missing_dir")
+
+
+def test_text_file_named_mp4(tmp_path):
+    path = tmp_path / "fake.mp4"
+    path.write_text("this is not a video\n" * 20)
+    message = _error(path)
+    assert str(path) in message and "not a readable video" in message
+
+
+def test_empty_file(tmp_path):
+    path = tmp_path / "empty.avi"
+    path.write_bytes(b"")
+    assert "empty" in _error(path)
+
+
+@pytest.mark.parametrize("ext,fourcc", CODECS)
+def test_zero_frame_video(tmp_path, ext, fourcc):
+    # A writer released without frames: MJPG/avi gives a valid container holding no frames; mp4v/mp4 gives a
+    # file without its index ("moov atom"), which FFmpeg cannot open. Both must be a clear InputError.
+    path = make_video(tmp_path / f"zero.{ext}", 0, fourcc=fourcc, seed=SEED)
+    message = _error(path)
+    assert str(path) in message
+    assert "no frames" in message or "not a readable video" in message or "empty" in message
+
+
+def test_empty_folder_and_pattern(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert "no image files" in _error(tmp_path / "empty")
+    (tmp_path / "texts").mkdir()
+    (tmp_path / "texts" / "a.txt").write_text("x")
+    assert "no image files" in _error(tmp_path / "texts")
+    assert "matches no images" in _error(str(tmp_path / "empty" / "*.png"))
+    assert "none an image" in _error(str(tmp_path / "texts" / "*"))
+
+
+def test_folder_of_only_corrupt_images(tmp_path):
+    (tmp_path / "a.png").write_bytes(b"broken")
+    (tmp_path / "b.jpg").write_bytes(b"broken too")
+    assert "none of the 2 image files could be read" in _error(tmp_path)
+
+
+def test_damaged_video_ends_with_consecutive_indices(tmp_path):
+    # Overwrite a stretch in the middle of an mp4 with seeded noise: decoding fails somewhere in the middle.
+    # Whatever FFmpeg makes of it, iteration must end, indices stay consecutive and never exceed the count.
+    n = 20
+    path = make_video(tmp_path / "damaged.mp4", n, fourcc="mp4v", seed=SEED, size=(64, 48))
+    rng = np.random.default_rng(SEED)
+    data = bytearray(path.read_bytes())
+    mid = len(data) // 2
+    data[mid : mid + len(data) // 10] = rng.integers(0, 256, len(data) // 10, dtype=np.uint8).tobytes()
+    path.write_bytes(bytes(data))
+    with open_frames(path) as source:
+        frames = list(source)
+    assert 1 <= len(frames) <= n
+    assert [f.index for f in frames] == list(range(len(frames)))
+    np.testing.assert_allclose([f.timestamp for f in frames], np.arange(len(frames)) / source.fps)
+    if len(frames) == n:  # frames lost in the damaged stretch were delivered empty: the tail is back in place
+        assert decode_index(frames[-1].image) == n - 1

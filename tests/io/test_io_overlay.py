@@ -1,0 +1,61 @@
+"""Overlay video: a readable video with one frame per write, drawn where the face is, written atomically."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import SEED
+from iohelpers import HEIGHT, WIDTH, index_image, make_results
+
+from aamtrack.io import OverlayWriter, draw_result, mesh_edges, open_frames
+from aamtrack.track.result import FrameResult
+
+
+def test_mesh_edges():
+    edges = mesh_edges(np.array([[0, 1, 2], [2, 1, 3]]))  # two triangles share the edge 1-2
+    np.testing.assert_array_equal(edges, [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]])
+
+
+def _result(rng, status="tracked"):
+    landmarks = np.column_stack([rng.uniform(20, 100, 68), rng.uniform(10, 55, 68)])
+    return FrameResult(frame=0, timestamp=0.0, status=status, confidence=0.9, landmarks=landmarks,
+                       vertices=landmarks)
+
+
+def test_draw_result_marks_the_face():
+    rng = np.random.default_rng(SEED)
+    triangles = np.array([[i, i + 1, i + 2] for i in range(66)])
+    blank = np.zeros((HEIGHT, WIDTH, 3), np.uint8)
+    drawn = draw_result(blank.copy(), _result(rng), mesh_edges(triangles))
+    assert (drawn.sum(axis=2) > 0).mean() > 0.05  # mesh and dots cover part of the frame
+    lost = draw_result(blank.copy(), FrameResult(frame=1, timestamp=0.1, status="lost"))
+    assert 0 < (lost.sum(axis=2) > 0).mean() < 0.05  # only the small status text
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".avi"])
+def test_writes_readable_video(tmp_path, suffix):
+    rng = np.random.default_rng(SEED)
+    results = make_results(11, rng, fps=25.0)
+    triangles = np.array([[i, i + 1, i + 2] for i in range(100)])
+    path = tmp_path / f"overlay{suffix}"
+    with OverlayWriter(path, 25.0, (WIDTH, HEIGHT), triangles=triangles) as writer:
+        for i, r in enumerate(results):
+            image = None if r.status == "unreadable" else index_image(i, rng, size=(2 * WIDTH, 2 * HEIGHT))
+            writer.write(image, r)  # other-size images are resized; None gives a black frame
+    assert writer.path == path and writer.n_frames == 11
+    assert list(tmp_path.iterdir()) == [path]  # temporary renamed
+    with open_frames(path) as source:
+        assert (source.width, source.height, source.fps) == (WIDTH, HEIGHT, 25.0)
+        frames = list(source)
+    assert len(frames) == 11 and all(f.image is not None for f in frames)
+
+
+def test_exception_leaves_nothing(tmp_path):
+    rng = np.random.default_rng(SEED)
+    with pytest.raises(RuntimeError):
+        with OverlayWriter(tmp_path / "o.mp4", 25.0, (WIDTH, HEIGHT)) as writer:
+            writer.write(index_image(0, rng), _result(rng))
+            raise RuntimeError("stop")
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(ValueError, match="closed"):
+        writer.write(index_image(1, rng), _result(rng))

@@ -1,0 +1,253 @@
+"""Compiled kernels of the active search: projection of the face model, piecewise-affine warp to the
+shape-free texture map, photometric normalisation, residual, parameter update and the search loop.
+
+Conventions shared by every kernel (and documented once here):
+
+- ``q`` is the full parameter vector ``[rx, ry, rz, s, tx, ty, c_0 .. c_{k-1}]``: Euler angles (radians,
+  R = Rz @ Ry @ Rx), scale s (pixels per model unit at pyramid octave 0), translation (pixels), deformation
+  coefficients c (animation units for the 3D model, PCA coefficients for the 2D model).
+- The model frame has x right, y up, z towards the viewer; the image has y down, so
+  ``u = s * (R X)_x + tx`` and ``v = -s * (R X)_y + ty``.
+- The search updates only ``q[free]``. An update ``delta`` (one value per free parameter) is composed in the
+  face's own frame, so one learned update matrix serves every position, size and roll of the face: angles
+  and coefficients add, the scale multiplies by ``exp(delta)``, and the translation moves by ``delta`` model
+  units along the face's (rolled) axes. Training perturbs with the same ``_compose`` the search applies.
+- Pyramid octave o has pixel coordinates ``x / 2**o`` of octave 0 (cv2.pyrDown's sampling grid).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ._flags import NJIT
+
+
+@numba.njit(**NJIT)
+def _rotation(rx, ry, rz, R):
+    """R = Rz @ Ry @ Rx written into R (3, 3)."""
+    cx, sx = math.cos(rx), math.sin(rx)
+    cy, sy = math.cos(ry), math.sin(ry)
+    cz, sz = math.cos(rz), math.sin(rz)
+    R[0, 0] = cz * cy
+    R[0, 1] = cz * sy * sx - sz * cx
+    R[0, 2] = cz * sy * cx + sz * sx
+    R[1, 0] = sz * cy
+    R[1, 1] = sz * sy * sx + cz * cx
+    R[1, 2] = sz * sy * cx - cz * sx
+    R[2, 0] = -sy
+    R[2, 1] = cy * sx
+    R[2, 2] = cy * cx
+
+
+@numba.njit(**NJIT)
+def _project(shape3d, basis, q, out):
+    """Vertices in image pixels (octave 0).
+
+    shape3d (n, 3) float64: the person's neutral shape (M + S sigma); basis (k, n, 3) float64;
+    q (6 + k,) float64; out (n, 2) float64.
+    """
+    R = np.empty((3, 3))
+    _rotation(q[0], q[1], q[2], R)
+    s, tx, ty = q[3], q[4], q[5]
+    n = shape3d.shape[0]
+    k = basis.shape[0]
+    for i in range(n):
+        x = shape3d[i, 0]
+        y = shape3d[i, 1]
+        z = shape3d[i, 2]
+        for j in range(k):
+            c = q[6 + j]
+            if c != 0.0:
+                x += c * basis[j, i, 0]
+                y += c * basis[j, i, 1]
+                z += c * basis[j, i, 2]
+        out[i, 0] = s * (R[0, 0] * x + R[0, 1] * y + R[0, 2] * z) + tx
+        out[i, 1] = -s * (R[1, 0] * x + R[1, 1] * y + R[1, 2] * z) + ty
+
+
+@numba.njit(**NJIT)
+def _warp(image, verts, scale, pix_vid, pix_bary, out):
+    """Piecewise-affine warp with bilinear sampling: texture pixel p takes the image value at
+    ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]]``.
+
+    image (H, W) float32; verts (n, 2) float64 octave-0 pixels; scale = 2**-octave; pix_vid (N, 3) int32;
+    pix_bary (N, 3) float32; out (N,) float32. Samples outside the image take the nearest border value.
+    Returns the number of texture pixels whose sample fell outside the image.
+    """
+    H, W = image.shape
+    n_out = 0
+    for p in range(pix_vid.shape[0]):
+        a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
+        wa, wb, wc = pix_bary[p, 0], pix_bary[p, 1], pix_bary[p, 2]
+        x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0])
+        y = scale * (wa * verts[a, 1] + wb * verts[b, 1] + wc * verts[c, 1])
+        if x < 0.0 or y < 0.0 or x > W - 1 or y > H - 1:
+            n_out += 1
+            x = min(max(x, 0.0), W - 1.0)
+            y = min(max(y, 0.0), H - 1.0)
+        x0 = min(int(x), W - 2)
+        y0 = min(int(y), H - 2)
+        fx = x - x0
+        fy = y - y0
+        top = image[y0, x0] + fx * (image[y0, x0 + 1] - image[y0, x0])
+        bot = image[y0 + 1, x0] + fx * (image[y0 + 1, x0 + 1] - image[y0 + 1, x0])
+        out[p] = top + fy * (bot - top)
+    return n_out
+
+
+@numba.njit(**NJIT)
+def _normalize(tex):
+    """In place: zero mean, unit standard deviation (photometric normalisation). tex (N,) float32."""
+    n = tex.shape[0]
+    m = 0.0
+    for p in range(n):
+        m += tex[p]
+    m /= n
+    v = 0.0
+    for p in range(n):
+        d = tex[p] - m
+        v += d * d
+    sd = math.sqrt(v / n)
+    inv = 1.0 / sd if sd > 1e-6 else 0.0
+    for p in range(n):
+        tex[p] = (tex[p] - m) * inv
+
+
+@numba.njit(**NJIT)
+def _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e):
+    """e = P (normalise(W(I)) - I_m) with P the projection off the appearance basis ``app`` (N, m) float32
+    (orthonormal columns; m may be 0). Returns the mean squared residual |e|^2 / N.
+    Scratch: verts (n, 2) float64, tex (N,) float32, coef (m,) float64.
+    """
+    _project(shape3d, basis, q, verts)
+    _warp(image, verts, scale, pix_vid, pix_bary, tex)
+    _normalize(tex)
+    N = tex.shape[0]
+    m = app.shape[1]
+    for p in range(N):
+        e[p] = tex[p] - mean[p]
+    for j in range(m):
+        acc = 0.0
+        for p in range(N):
+            acc += app[p, j] * e[p]
+        coef[j] = acc
+    err = 0.0
+    for p in range(N):
+        acc = e[p]
+        for j in range(m):
+            acc -= app[p, j] * coef[j]
+        e[p] = acc
+        err += acc * acc
+    return err / N
+
+
+@numba.njit(**NJIT)
+def _compose(q, free, delta, step, lo, hi, out):
+    """out = q updated by ``step * delta`` in the face's own frame (see module docstring), clipped to [lo, hi]."""
+    for i in range(q.shape[0]):
+        out[i] = q[i]
+    du = 0.0
+    dv = 0.0
+    for a in range(free.shape[0]):
+        j = free[a]
+        d = step * delta[a]
+        if j == 3:
+            out[3] = q[3] * math.exp(d)
+        elif j == 4:
+            du = d
+        elif j == 5:
+            dv = d
+        else:
+            out[j] = q[j] + d
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    out[4] = q[4] + q[3] * (c * du - s * dv)
+    out[5] = q[5] - q[3] * (s * du + c * dv)
+    for i in range(q.shape[0]):
+        out[i] = min(max(out[i], lo[i]), hi[i])
+
+
+@numba.njit(**NJIT)
+def _search(image, scale, shape3d, basis, q, free, lo, hi, U, mean, app, pix_vid, pix_bary, max_iter, tol):
+    """Active search on one couple: repeat warp, residual, delta = U e, try steps 1, 1/2, 1/4, 1/8 of
+    delta and keep the first that lowers the residual; stop when none does, when the residual falls by
+    less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
+
+    U (n_free, N) float32. Returns (iterations, final mean squared residual).
+    """
+    n = shape3d.shape[0]
+    N = pix_vid.shape[0]
+    verts = np.empty((n, 2))
+    tex = np.empty(N, dtype=np.float32)
+    coef = np.empty(app.shape[1])
+    e = np.empty(N)
+    e_try = np.empty(N)
+    q_try = np.empty_like(q)
+    delta = np.empty(free.shape[0])
+    err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e)
+    it = 0
+    while it < max_iter:
+        it += 1
+        for a in range(free.shape[0]):
+            acc = 0.0
+            for p in range(N):
+                acc += U[a, p] * e[p]
+            delta[a] = acc
+        step = 1.0
+        accepted = False
+        err_try = err
+        for _ in range(4):
+            _compose(q, free, delta, step, lo, hi, q_try)
+            err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary,
+                                verts, tex, coef, e_try)
+            if err_try < err:
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            break
+        gain = (err - err_try) / max(err, 1e-12)
+        for i in range(q.shape[0]):
+            q[i] = q_try[i]
+        for p in range(N):
+            e[p] = e_try[p]
+        err = err_try
+        if gain < tol:
+            break
+    return it, err
+
+
+@numba.njit(**NJIT)
+def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, app, pix_vid, pix_bary,
+                         G, e0):
+    """Add to G (N, n_free) the least-squares slopes of the residual along each free parameter of one
+    training image: G[:, a] += sum_d d (e(q0 + d e_a) - e(q0)) / sum_d d^2 over the perturbations
+    ``steps[a]`` (n_free, n_steps), each composed with ``_compose``. Also writes e(q0) into e0.
+    """
+    n = shape3d.shape[0]
+    N = pix_vid.shape[0]
+    verts = np.empty((n, 2))
+    tex = np.empty(N, dtype=np.float32)
+    coef = np.empty(app.shape[1])
+    e = np.empty(N)
+    q = np.empty_like(q0)
+    delta = np.zeros(free.shape[0])
+    no_lo = np.full(q0.shape[0], -np.inf)
+    no_hi = np.full(q0.shape[0], np.inf)
+    _residual(image, scale, shape3d, basis, q0, mean, app, pix_vid, pix_bary, verts, tex, coef, e0)
+    for a in range(free.shape[0]):
+        denom = 0.0
+        for k in range(steps.shape[1]):
+            d = steps[a, k]
+            denom += d * d
+        for k in range(steps.shape[1]):
+            d = steps[a, k]
+            delta[a] = d
+            _compose(q0, free, delta, 1.0, no_lo, no_hi, q)
+            _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e)
+            for p in range(N):
+                G[p, a] += d * (e[p] - e0[p]) / denom
+        delta[a] = 0.0

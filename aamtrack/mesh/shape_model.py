@@ -1,0 +1,131 @@
+"""Face shape models behind one interface: parameters q -> 2D vertex positions in an image.
+
+Both models are written as a 3D linear shape ``X = base + sum_j c_j basis_j`` seen by a weak-perspective
+pose (see ``aamtrack._kernels.warp`` for the parameter vector q and the axis conventions):
+
+- 3D (Candide-3): base = M + S sigma (sigma, the person's shape units, is fitted per person and then held),
+  basis = the animation units A used for tracking; the pose has 3 rotations, scale and 2D translation.
+- 2D (68 points): base = the Procrustes mean shape with z = 0, basis = PCA modes; the pose is a similarity
+  (roll, scale, translation), so rx and ry stay 0 and are not searched.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._kernels.warp import _project, _rotation
+
+POSE_NAMES = ("rx", "ry", "rz", "scale", "tx", "ty")
+N_POSE = 6
+
+
+@dataclass(frozen=True)
+class ShapeModel:
+    """A linear face shape with a weak-perspective pose.
+
+    kind : "3d" or "2d"
+    mean : (n_vertices, 3) float64 -- M
+    shape_units : (n_shape, n_vertices, 3) float64 -- S (empty for 2D)
+    basis : (n_coef, n_vertices, 3) float64 -- A (3D animation units) or PCA modes (2D)
+    triangles : (n_triangles, 3) int32
+    landmark_map : (68, n_vertices) float64 -- iBUG-68 landmarks as linear combinations of vertices
+    shape_names, coef_names : tuple of str
+    coef_lo, coef_hi : (n_coef,) float64 -- bounds of the coefficients
+    shape_sd : (n_shape,) float64 -- prior spread of sigma (regularisation of the shape fit)
+    """
+
+    kind: str
+    mean: np.ndarray
+    shape_units: np.ndarray
+    basis: np.ndarray
+    triangles: np.ndarray
+    landmark_map: np.ndarray
+    shape_names: tuple
+    coef_names: tuple
+    coef_lo: np.ndarray
+    coef_hi: np.ndarray
+    shape_sd: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return self.mean.shape[0]
+
+    @property
+    def n_coef(self) -> int:
+        return self.basis.shape[0]
+
+    @property
+    def n_shape(self) -> int:
+        return self.shape_units.shape[0]
+
+    @property
+    def n_q(self) -> int:
+        return N_POSE + self.n_coef
+
+    @property
+    def free(self) -> np.ndarray:
+        """(n_free,) int64 indices of q that the search updates."""
+        pose = [0, 1, 2, 3, 4, 5] if self.kind == "3d" else [2, 3, 4, 5]
+        return np.array(pose + list(range(N_POSE, self.n_q)), dtype=np.int64)
+
+    @property
+    def param_names(self) -> tuple:
+        return POSE_NAMES + tuple(self.coef_names)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of q, each (n_q,) float64: free pose, bounded coefficients; 2D keeps rx = ry = 0."""
+        lo = np.full(self.n_q, -np.inf)
+        hi = np.full(self.n_q, np.inf)
+        lo[3] = 1e-6
+        lo[N_POSE:] = self.coef_lo
+        hi[N_POSE:] = self.coef_hi
+        if self.kind == "2d":
+            lo[:2] = hi[:2] = 0.0
+        return lo, hi
+
+    def neutral(self, shape_params: np.ndarray | None = None) -> np.ndarray:
+        """(n_vertices, 3) float64: M + S sigma."""
+        if shape_params is None or self.n_shape == 0:
+            return self.mean.copy()
+        return self.mean + np.tensordot(np.asarray(shape_params, float), self.shape_units, axes=1)
+
+    def shape3d(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
+        """(n_vertices, 3) float64: the deformed shape in the model frame, pose removed."""
+        return self.neutral(shape_params) + np.tensordot(np.asarray(q[N_POSE:], float), self.basis, axes=1)
+
+    def project(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
+        """(n_vertices, 2) float64 image pixels."""
+        out = np.empty((self.n_vertices, 2))
+        _project(np.ascontiguousarray(self.neutral(shape_params)), np.ascontiguousarray(self.basis),
+                 np.ascontiguousarray(q, dtype=np.float64), out)
+        return out
+
+    def landmarks(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
+        """(68, 2) float64 iBUG-68 landmarks in image pixels."""
+        return self.landmark_map @ self.project(q, shape_params)
+
+    def landmarks3d(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
+        """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed)."""
+        return self.landmark_map @ self.shape3d(q, shape_params)
+
+    def frontal_width(self) -> float:
+        """Width of the mean shape in model units (x extent): the face width that scale s multiplies."""
+        x = self.mean[:, 0]
+        return float(x.max() - x.min())
+
+
+def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
+    """(3, 3) float64 R = Rz @ Ry @ Rx."""
+    R = np.empty((3, 3))
+    _rotation(float(rx), float(ry), float(rz), R)
+    return R
+
+
+def rotation_angles(R: np.ndarray) -> tuple[float, float, float]:
+    """Inverse of ``rotation_matrix`` (ry in [-pi/2, pi/2])."""
+    ry = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    rx = np.arctan2(R[2, 1], R[2, 2])
+    rz = np.arctan2(R[1, 0], R[0, 0])
+    return float(rx), float(ry), float(rz)

@@ -1,0 +1,63 @@
+"""Multi-resolution active search on one image (poster, "Multi-Resolution Active Model Search"): for each
+couple, coarse to fine, warp, residual, delta = U e, p <- p + delta with step control, until convergence.
+The loop of each couple runs in compiled code (``aamtrack._kernels.warp._search``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._kernels.warp import _residual, _search
+from ..model import Model
+from .pyramid import build_pyramid, octave_for, to_gray32
+from .result import FitResult
+
+MAX_ITER = 30
+TOL = 1e-3
+
+
+class Searcher:
+    """Holds a model's arrays in the layout the kernels take. Stateless between calls."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        sm = model.shape
+        self.free = sm.free
+        self.lo, self.hi = sm.bounds()
+        self.basis = np.ascontiguousarray(sm.basis)
+        self.width = sm.frontal_width()
+        self.n_octaves = 1 + max(octave_for(4096.0, c.face_px, 12) for c in model.couples)
+
+    def pyramid(self, image: np.ndarray) -> list[np.ndarray]:
+        return build_pyramid(to_gray32(image), self.n_octaves)
+
+    def fit(self, image_or_pyramid, q0: np.ndarray, shape_params: np.ndarray | None = None, *,
+            max_iter: int = MAX_ITER, tol: float = TOL, couples: slice = slice(None)) -> FitResult:
+        """Search from q0 (n_q,) on an image (H, W[, 3]) or a pyramid from ``pyramid``."""
+        pyr = image_or_pyramid if isinstance(image_or_pyramid, list) else self.pyramid(image_or_pyramid)
+        sm = self.model.shape
+        shape3d = np.ascontiguousarray(sm.neutral(shape_params))
+        q = np.array(q0, dtype=np.float64)
+        iters, errs = [], []
+        for c in self.model.couples[couples]:
+            t = self.model.textures[c.texture]
+            o = min(octave_for(q[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
+            n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, self.free, self.lo, self.hi, c.U,
+                                t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, max_iter, tol)
+            iters.append(int(n_it))
+            errs.append(float(np.sqrt(err)))
+        verts = sm.project(q, shape_params)
+        return FitResult(p=q, landmarks=sm.landmark_map @ verts, vertices=verts,
+                         residual=errs[-1] if errs else float("nan"), iterations=tuple(iters), errors=tuple(errs))
+
+    def residual(self, pyr: list[np.ndarray], q: np.ndarray, shape_params=None, couple: int = -1) -> float:
+        """RMS projected residual of q on one couple (default the finest)."""
+        c = self.model.couples[couple]
+        t = self.model.textures[c.texture]
+        o = min(octave_for(q[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
+        sm = self.model.shape
+        N = t.frame.n_pixels
+        err = _residual(pyr[o], 0.5 ** o, np.ascontiguousarray(sm.neutral(shape_params)), self.basis,
+                        np.asarray(q, np.float64), t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary,
+                        np.empty((sm.n_vertices, 2)), np.empty(N, np.float32), np.empty(t.appearance.shape[1]),
+                        np.empty(N))
+        return float(np.sqrt(err))

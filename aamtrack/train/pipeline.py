@@ -1,0 +1,157 @@
+"""Offline learning end to end: shape model and per-image fits, texture maps, mean textures and appearance
+bases, and one update matrix per couple. Library code: progress goes through the ``progress`` wrapper the
+caller hands in (the CLI passes tqdm), messages through ``logging``."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Iterable
+
+import numpy as np
+
+from .._kernels.warp import _accumulate_gradient
+from ..mesh.candide import Candide
+from ..mesh.candide_model import candide_shape_model
+from ..mesh.landmarks import N_CANDIDE_SKIN_TRIANGLES, candide_landmark_map, refine_landmark_map
+from ..mesh.shape_model import ShapeModel
+from ..model import Couple, Model, Texture
+from ..track.pyramid import build_pyramid, octave_for, to_gray32
+from .shape2d import pca_shape_model, procrustes_mean
+from .shape_fit import ShapeFit, fit_landmarks
+from ..mesh.texture_map import texture_frame
+from .texture import learn_appearance, sample_texture
+from .update import perturbation_steps, update_matrix
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[..., Iterable]
+
+
+def _no_progress(iterable, **_):
+    return iterable
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """couples: ((face_px, texture_width), ...) coarse to fine; a couple is valid only when its texture is no
+    wider than the face at its image resolution. n_appearance: appearance modes projected out.
+    forehead_cut: 3D only, texture triangles whose centre is above this model y (hairline) are left out."""
+
+    couples: tuple = ((32, 20), (64, 32), (128, 48))
+    n_appearance: int = 8
+    map_refine_rounds: int = 2
+    map_refine_images: int = 300
+    forehead_cut: float = 0.55
+    n_octaves: int = 6
+
+    def __post_init__(self):
+        for face_px, tex in self.couples:
+            if tex > face_px:
+                raise ValueError(f"couple ({face_px}, {tex}): texture finer than the face's pixels")
+
+
+@dataclass(frozen=True)
+class TrainReport:
+    """Per-image landmark fit residuals in pixels (the sigma-learning fit), and timings in seconds."""
+
+    names: tuple
+    fit_rms_px: np.ndarray
+    timings: dict = field(default_factory=dict)
+
+
+def _model_residuals(sm: ShapeModel, fits: list[ShapeFit], points: np.ndarray) -> np.ndarray:
+    """(n, 68, 2) annotated minus fitted landmarks in model units and axes (scale and roll undone)."""
+    out = np.empty((len(fits), 68, 2))
+    for i, f in enumerate(fits):
+        d = points[i] - sm.landmarks(f.q, f.shape_params)
+        d[:, 1] = -d[:, 1]
+        c, s = np.cos(f.q[2]), np.sin(f.q[2])
+        out[i, :, 0] = (c * d[:, 0] + s * d[:, 1]) / f.q[3]
+        out[i, :, 1] = (-s * d[:, 0] + c * d[:, 1]) / f.q[3]
+    return out
+
+
+def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, config: TrainConfig,
+                progress: Progress = _no_progress) -> tuple[ShapeModel, list[ShapeFit]]:
+    """The shape model and each image's fit (pose, sigma, coefficients)."""
+    if kind == "2d":
+        sm = pca_shape_model(points)
+        return sm, [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
+    if candide is None:
+        raise ValueError("the 3D model needs the Candide mesh")
+    mean68, _ = procrustes_mean(points)
+    sm = candide_shape_model(candide, candide_landmark_map(candide.vertices, candide.triangles, mean68))
+    rng = np.random.default_rng(0)
+    sub = rng.permutation(len(points))[: config.map_refine_images]
+    for r in range(config.map_refine_rounds):
+        fits = [fit_landmarks(sm, points[i]) for i in progress(sub, desc=f"place landmarks {r + 1}", unit="img")]
+        lm = refine_landmark_map(sm.landmark_map, sm.mean, sm.triangles,
+                                 _model_residuals(sm, fits, points[sub]), n_preferred=N_CANDIDE_SKIN_TRIANGLES)
+        sm = ShapeModel(**{**sm.__dict__, "landmark_map": lm})
+    fits = [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
+    sigma = np.array([f.shape_params for f in fits])
+    # The training set's average person becomes the mean shape; sigma's prior spread is the set's spread.
+    mean = sm.neutral(sigma.mean(0))
+    sm = ShapeModel(**{**sm.__dict__, "mean": mean, "shape_sd": np.maximum(sigma.std(0), 0.05)})
+    fits = [ShapeFit(f.q, f.shape_params - sigma.mean(0), f.rms_px) for f in fits]
+    return sm, fits
+
+
+def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
+    """Triangles of the texture map: 3D leaves out the hairline band of the forehead."""
+    if sm.kind != "3d":
+        return sm.triangles
+    centre_y = sm.mean[sm.triangles][:, :, 1].mean(1)
+    return sm.triangles[centre_y < config.forehead_cut]
+
+
+def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
+                config: TrainConfig = TrainConfig(), names: tuple = (),
+                progress: Progress = _no_progress) -> tuple[Model, TrainReport]:
+    """Train a model from grey or BGR images and their (n, 68, 2) landmarks."""
+    t0 = time.perf_counter()
+    sm, fits = learn_shape(points, kind, candide=candide, config=config, progress=progress)
+    t_shape = time.perf_counter() - t0
+    log.info("shape fits: mean RMS %.2f px", np.mean([f.rms_px for f in fits]))
+    ref2d = sm.mean[:, :2] * np.array([1.0, -1.0])
+    tris = texture_triangles(sm, config)
+    width = sm.frontal_width()
+    steps = perturbation_steps(sm)
+    free = sm.free
+    basis = np.ascontiguousarray(sm.basis)
+    couple_data = []
+    for face_px, tex_w in config.couples:
+        frame = texture_frame(ref2d, tris, tex_w)
+        couple_data.append([face_px, frame, []])
+    pyramids_needed = [octave_for(f.q[3] * width, c[0], config.n_octaves) for f in fits for c in couple_data]
+    n_oct = max(pyramids_needed) + 1
+    neutral = [np.ascontiguousarray(sm.neutral(f.shape_params)) for f in fits]
+
+    def octave_images(i):
+        pyr = build_pyramid(to_gray32(images[i]), n_oct)
+        for face_px, frame, _ in couple_data:
+            o = min(octave_for(fits[i].q[3] * width, face_px, config.n_octaves), len(pyr) - 1)
+            yield pyr[o], 0.5 ** o, frame
+
+    for i in progress(range(len(images)), desc="textures", unit="img"):
+        for (img, sc, frame), cd in zip(octave_images(i), couple_data):
+            cd[2].append(sample_texture(img, sc, neutral[i], basis, fits[i].q, frame))
+    textures = []
+    for face_px, frame, tex in couple_data:
+        mean, app = learn_appearance(np.array(tex), n_modes=config.n_appearance)
+        textures.append(Texture(frame, mean, app))
+    t_tex = time.perf_counter() - t0 - t_shape
+    grads = [np.zeros((t.frame.n_pixels, len(free))) for t in textures]
+    for i in progress(range(len(images)), desc="update matrices", unit="img"):
+        for (img, sc, frame), t, G in zip(octave_images(i), textures, grads):
+            e0 = np.empty(frame.n_pixels)
+            _accumulate_gradient(img, sc, neutral[i], basis, fits[i].q, free, steps, t.mean, t.appearance,
+                                 frame.pix_vid, frame.pix_bary, G, e0)
+    couples = tuple(Couple(float(cd[0]), k, update_matrix(G / len(images)))
+                    for k, (cd, G) in enumerate(zip(couple_data, grads)))
+    timings = {"shape_s": t_shape, "texture_s": t_tex, "update_s": time.perf_counter() - t0 - t_shape - t_tex}
+    cfg = {**asdict(config), "n_images": len(images), "kind": kind}
+    model = Model(shape=sm, textures=tuple(textures), couples=couples, config=cfg)
+    return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits]), timings)

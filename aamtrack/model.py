@@ -36,11 +36,13 @@ class Texture:
 @dataclass(frozen=True)
 class Couple:
     """One couple: runs at the octave where the face is >= ``face_px`` wide, on texture ``texture``, with
-    update matrix U (n_free, N) float32 (delta = U e)."""
+    update matrix U (n_free, N) float32 (delta = U e) for the parameters ``free`` (n_free,) int64 of q
+    (coarse couples may search the pose only)."""
 
     face_px: float
     texture: int
     U: np.ndarray
+    free: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,7 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays[f"tex{i}/appearance"] = t.appearance
     for j, c in enumerate(model.couples):
         arrays[f"couple{j}/U"] = c.U
+        arrays[f"couple{j}/free"] = c.free
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
@@ -118,13 +121,13 @@ def load_model(path: str | Path) -> Model:
             Texture(TextureFrame(tuple(shp), data[f"tex{i}/pix_xy"], data[f"tex{i}/pix_vid"],
                                  data[f"tex{i}/pix_bary"]), data[f"tex{i}/mean"], data[f"tex{i}/appearance"])
             for i, shp in enumerate(meta["textures"]))
-        couples = tuple(Couple(float(c["face_px"]), int(c["texture"]), data[f"couple{j}/U"])
-                        for j, c in enumerate(meta["couples"]))
+        couples = tuple(Couple(float(c["face_px"]), int(c["texture"]), data[f"couple{j}/U"],
+                               data[f"couple{j}/free"].astype(np.int64)) for j, c in enumerate(meta["couples"]))
     except KeyError as exc:
         raise ModelFileError(f"{path}: corrupt model, missing {exc}")
     for c in couples:
         n_pix = textures[c.texture].frame.n_pixels
-        if c.U.shape != (len(shape.free), n_pix):
+        if c.U.shape != (len(c.free), n_pix) or not np.isin(c.free, shape.free).all():
             raise ModelFileError(f"{path}: corrupt model, update matrix of shape {c.U.shape}, "
-                                 f"expected {(len(shape.free), n_pix)}")
+                                 f"expected {(len(c.free), n_pix)}")
     return Model(shape=shape, textures=textures, couples=couples, config=meta.get("config", {}))

@@ -26,9 +26,10 @@ class Searcher:
         self.basis = np.ascontiguousarray(sm.basis)
         self.width = sm.frontal_width()
         self.n_octaves = 1 + max(octave_for(4096.0, c.face_px, 12) for c in model.couples)
+        self.lcn_sigma = float(model.config.get("lcn_sigma", 0.0))
 
     def pyramid(self, image: np.ndarray) -> list[np.ndarray]:
-        return build_pyramid(to_gray32(image), self.n_octaves)
+        return build_pyramid(to_gray32(image), self.n_octaves, lcn_sigma=self.lcn_sigma)
 
     def fit(self, image_or_pyramid, q0: np.ndarray, shape_params: np.ndarray | None = None, *,
             max_iter: int = MAX_ITER, tol: float = TOL, couples: slice = slice(None)) -> FitResult:
@@ -41,7 +42,7 @@ class Searcher:
         for c in self.model.couples[couples]:
             t = self.model.textures[c.texture]
             o = min(octave_for(q[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
-            n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, self.free, self.lo, self.hi, c.U,
+            n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, c.free, self.lo, self.hi, c.U,
                                 t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, max_iter, tol)
             iters.append(int(n_it))
             errs.append(float(np.sqrt(err)))

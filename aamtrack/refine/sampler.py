@@ -1,0 +1,202 @@
+"""Key point sampling and refinement for facial tracking (Akagi et al., "A facial tracking and transfer method with a
+key point refinement"). The deformation ``D^t`` (an RBF of 3D space, :mod:`.rbf`) maps the neutral face F^0 close
+to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark detector), each round:
+
+1. computes ``D^t(F^0)`` for every frame from the current key points;
+2. samples candidate key points at random from F^0;
+3. keeps those whose motion in ``D^t(F^0)`` correlates with the motion of their neighbourhood above the mean;
+4. refines the key points' positions in every frame by non-rigid GMM registration (:mod:`.gmm`) of their
+   neighbourhoods in ``D^t(F^0)`` to the scan F^t (the landmarks stay where the detector put them);
+5. repeats while the error falls by more than ``min_improvement`` (1%).
+
+Only the landmarks are assumed to correspond between frames: the scans are point clouds, and the error that
+steers the loop is the mean distance from ``D^t(F^0)`` to the nearest scan point.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .gmm import GmmConfig, register
+from .rbf import rbf_system
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """Options of the key point sampler.
+
+    n_candidates : candidates drawn per round; max_rounds : upper bound on rounds;
+    min_improvement : stop when the error falls by less than this fraction in a round;
+    neighbour_radius : radius of a key point's neighbourhood, in units of the mesh spacing;
+    n_moving : at most this many neighbourhood points are registered per frame (a fixed random subset);
+    kernel, smoothing : of the RBF deformation; gmm : registration options; seed : of the sampling.
+    """
+
+    n_candidates: int = 400
+    max_rounds: int = 6
+    min_improvement: float = 0.01
+    neighbour_radius: float = 4.0
+    n_moving: int = 4000
+    kernel: str = "thin_plate"
+    smoothing: float = 0.0
+    gmm: GmmConfig = field(default_factory=GmmConfig)
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class KeyPoints:
+    """Result of the sampler.
+
+    index : (n_keys,) int64 vertex indices into F^0; the first ``n_fixed`` are the given landmarks.
+    positions : (n_frames, n_keys, 3) float64 key point positions in every frame (frame 0: F^0).
+    errors : mean distance from D^t(F^0) to the scans, before the first round and after each accepted round.
+    n_keys : number of key points after each of those steps.
+    """
+
+    index: np.ndarray
+    positions: np.ndarray
+    n_fixed: int
+    errors: tuple = ()
+    n_keys: tuple = ()
+
+
+def mesh_spacing(points: np.ndarray) -> float:
+    """Median distance from a point to its nearest neighbour."""
+    d, _ = cKDTree(points).query(points, k=2)
+    return float(np.median(d[:, 1]))
+
+
+def motion_correlation(motion: np.ndarray, candidates: np.ndarray, neighbours: Sequence) -> np.ndarray:
+    """Mean correlation coefficient between each candidate's motion and its neighbours' motions.
+
+    motion : (n_frames, n_points, 3) displacements from F^0; candidates : (n_cand,) point indices;
+    neighbours : for each candidate, an index array of its neighbouring points (the candidate itself is skipped).
+    Returns (n_cand,) float64 in [-1, 1]; 0 where a candidate or all its neighbours do not move.
+    """
+    traj = np.asarray(motion, dtype=np.float64).transpose(1, 0, 2).reshape(motion.shape[1], -1)
+    traj = traj - traj.mean(1, keepdims=True)
+    norm = np.linalg.norm(traj, axis=1)
+    scale = max(float(norm.max()), 1e-300)
+    z = np.where(norm[:, None] > 1e-9 * scale, traj / np.maximum(norm, 1e-300)[:, None], 0.0)
+    out = np.zeros(len(candidates))
+    for i, (c, nb) in enumerate(zip(candidates, neighbours)):
+        nb = np.asarray(nb, dtype=np.int64)
+        nb = nb[nb != c]
+        if len(nb):
+            out[i] = float((z[nb] @ z[c]).mean())
+    return out
+
+
+def select_candidates(motion: np.ndarray, candidates: np.ndarray, neighbours: Sequence) -> np.ndarray:
+    """The candidates whose :func:`motion_correlation` is above the mean over all candidates."""
+    corr = motion_correlation(motion, candidates, neighbours)
+    return np.asarray(candidates)[corr > corr.mean()]
+
+
+def deform_frames(neutral: np.ndarray, keys: KeyPoints, *, kernel: str = "thin_plate", smoothing: float = 0.0,
+                  points: np.ndarray | None = None) -> np.ndarray:
+    """``D^t(points)`` for every frame : (n_frames, n_points, 3) float64; points default to all of F^0."""
+    return _predict(np.asarray(neutral, np.float64), keys.index, keys.positions, kernel, smoothing, points)
+
+
+def _predict(neutral, index, positions, kernel, smoothing, points=None):
+    system = rbf_system(neutral[index], kernel=kernel, smoothing=smoothing)
+    n_frames, k, _ = positions.shape
+    coefs = system.solve(positions.transpose(1, 0, 2).reshape(k, 3 * n_frames))
+    pts = neutral if points is None else np.asarray(points, np.float64)
+    return system.evaluate(pts, coefs).reshape(len(pts), n_frames, 3).transpose(1, 0, 2)
+
+
+def _surface_error(pred: np.ndarray, trees: Sequence) -> float:
+    return float(np.mean([trees[t].query(pred[t])[0].mean() for t in range(1, len(pred))])) if len(pred) > 1 else 0.0
+
+
+def _register_frames(neutral, index, positions, n_fixed, scans, trees, moving, spacing, config, progress):
+    """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
+    system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
+    operator = system.operator(neutral[moving])
+    free = np.arange(len(index)) >= n_fixed
+    out = positions.copy()
+    crop = max(config.gmm.scales) * spacing * 3.0
+    for t in range(1, len(positions)):
+        x0 = operator @ positions[t]
+        near = trees[t].query_ball_point(x0, crop, return_sorted=False)
+        sel = np.unique(np.concatenate([np.asarray(a, dtype=np.int64) for a in near] + [np.zeros(0, np.int64)]))
+        scene = np.asarray(scans[t], np.float64)[sel]
+        out[t] = register(operator, positions[t], scene, spacing=spacing, free=free, config=config.gmm).controls
+        if progress is not None:
+            progress(1)
+    return out
+
+
+def refine_key_points(
+    neutral: np.ndarray,
+    scans: Sequence[np.ndarray],
+    landmarks: np.ndarray,
+    landmark_index: np.ndarray,
+    *,
+    config: SamplerConfig = SamplerConfig(),
+    progress: Callable[[int], None] | None = None,
+) -> KeyPoints:
+    """Find key points on F^0 and their positions in every frame so that ``D^t(F^0)`` follows the scans.
+
+    neutral : (n_vertices, 3) F^0. scans : n_frames point sets (n_t, 3), scans[0] is F^0 (its order is not used).
+    landmarks : (n_frames, n_land, 3) detected landmark positions per frame. landmark_index : (n_land,) their
+    vertices in F^0. progress : called with the number of frames registered (for a progress bar).
+    """
+    neutral = np.ascontiguousarray(neutral, dtype=np.float64)
+    landmark_index = np.asarray(landmark_index, dtype=np.int64)
+    n_frames = len(scans)
+    landmarks = np.asarray(landmarks, dtype=np.float64)
+    if landmarks.shape != (n_frames, len(landmark_index), 3):
+        raise ValueError(f"landmarks {landmarks.shape} do not match {n_frames} frames of {len(landmark_index)}")
+    rng = np.random.default_rng(config.seed)
+    n_fixed = len(landmark_index)
+    index = landmark_index.copy()
+    positions = landmarks.copy()
+    positions[0] = neutral[index]
+    trees = [cKDTree(np.asarray(s, np.float64)) for s in scans]
+    tree0 = cKDTree(neutral)
+    n_moving = min(config.n_moving, len(neutral))
+    moving_pool = np.sort(rng.choice(len(neutral), n_moving, replace=False))
+    spacing = mesh_spacing(neutral[moving_pool])
+    radius = config.neighbour_radius * mesh_spacing(neutral)
+
+    pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
+    error = _surface_error(pred, trees)
+    errors, n_keys = [error], [len(index)]
+    log.info("sampler: %d key points, error %.4g", len(index), error)
+    for round_ in range(config.max_rounds):
+        pool = np.setdiff1d(np.arange(len(neutral)), index)
+        if len(pool) == 0:
+            break
+        cand = rng.choice(pool, min(config.n_candidates, len(pool)), replace=False)
+        kept = select_candidates(pred - neutral, cand, tree0.query_ball_point(neutral[cand], radius))
+        new_index = np.concatenate([index, kept])
+        new_positions = np.concatenate([positions, pred[:, kept]], axis=1)
+        # the neighbourhoods of all key points: the moving set of the registration
+        near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
+        moving = moving_pool[np.isfinite(near)]
+        if n_frames > 1 and len(moving):
+            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scans, trees, moving,
+                                             spacing, config, progress)
+        new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
+        new_error = _surface_error(new_pred, trees)
+        log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,
+                 len(new_index), len(kept), len(cand), new_error)
+        if new_error >= error:
+            break
+        gain = (error - new_error) / max(error, 1e-300)
+        index, positions, pred, error = new_index, new_positions, new_pred, new_error
+        errors.append(error)
+        n_keys.append(len(index))
+        if gain < config.min_improvement:
+            break
+    return KeyPoints(index, positions, n_fixed, tuple(errors), tuple(n_keys))

@@ -1,8 +1,11 @@
 """Shared test fixtures: the location of ../shared/data and a skip marker for tests that need it."""
 
+import sys
 from pathlib import Path
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/synth.py for every test folder
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 SEED = 20261121
@@ -14,3 +17,24 @@ def shared_path(*parts: str) -> Path:
     if not path.exists():
         pytest.skip(f"needs ../shared/data/{'/'.join(parts)} (absent here)")
     return path
+
+SYNTH_COUPLES = ((24, 16), (48, 32))
+
+
+@pytest.fixture(scope="session")
+def synth_data():
+    """24 rendered synthetic faces (images, (24, 68, 2) points) with known landmarks."""
+    import numpy as np
+    import synth
+
+    return synth.random_faces(24, np.random.default_rng(SEED))
+
+
+@pytest.fixture(scope="session")
+def synth_model(synth_data):
+    """A 2D model trained on the synthetic faces (a few seconds)."""
+    from aamtrack.train.pipeline import TrainConfig, train_model
+
+    images, points = synth_data
+    model, _ = train_model(images, points, "2d", config=TrainConfig(couples=SYNTH_COUPLES, pose_only_couples=1))
+    return model

@@ -18,6 +18,7 @@ from ..mesh.landmarks import N_CANDIDE_SKIN_TRIANGLES, candide_landmark_map, ref
 from ..mesh.shape_model import N_POSE, ShapeModel
 from ..model import Couple, Model, Texture
 from ..track.pyramid import build_pyramid, octave_for, to_gray32
+from ..track.detector import calibrate_detector
 from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
 from ..mesh.texture_map import texture_frame
@@ -112,6 +113,27 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
     return sm.triangles[centre_y < config.forehead_cut]
 
 
+def _residual_levels(images, fits, sm, textures, couples, config, *, n_images: int = 200,
+                     shift: float = 0.25) -> tuple[float, float]:
+    """Median RMS residual of the finest couple at the true fits (a good fit) and with the pose moved by
+    ``shift`` of the face width (a lost track): the ends of the confidence scale."""
+    from ..model import Model
+    from ..track.search import Searcher
+
+    searcher = Searcher(Model(sm, tuple(textures), tuple(couples), {"lcn_sigma": config.lcn_sigma}))
+    rng = np.random.default_rng(1)
+    good, bad = [], []
+    for i in rng.permutation(len(images))[:n_images]:
+        pyr = searcher.pyramid(images[i])
+        q = fits[i].q
+        good.append(searcher.residual(pyr, q, fits[i].shape_params))
+        qb = q.copy()
+        ang = rng.uniform(0, 2 * np.pi)
+        qb[4:6] += shift * q[3] * sm.frontal_width() * np.array([np.cos(ang), np.sin(ang)])
+        bad.append(searcher.residual(pyr, qb, fits[i].shape_params))
+    return float(np.median(good)), float(np.median(bad))
+
+
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
                 config: TrainConfig = TrainConfig(), names: tuple = (),
                 progress: Progress = _no_progress) -> tuple[Model, TrainReport]:
@@ -160,7 +182,13 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         cols = np.arange(n_pose) if k < config.pose_only_couples else np.arange(len(free))
         couples.append(Couple(float(cd[0]), k, update_matrix(G[:, cols] / len(images)), free[cols].copy()))
     couples = tuple(couples)
-    timings = {"shape_s": t_shape, "texture_s": t_tex, "update_s": time.perf_counter() - t0 - t_shape - t_tex}
-    cfg = {**asdict(config), "n_images": len(images), "kind": kind}
+    t_upd = time.perf_counter() - t0 - t_shape - t_tex
+    box_points, n_detected = calibrate_detector(images, points)
+    log.info("Haar detector found %d of %d training faces", n_detected, len(images))
+    good, bad = _residual_levels(images, fits, sm, textures, couples, config)
+    timings = {"shape_s": t_shape, "texture_s": t_tex, "update_s": t_upd,
+               "calibration_s": time.perf_counter() - t0 - t_shape - t_tex - t_upd}
+    cfg = {**asdict(config), "n_images": len(images), "kind": kind, "residual_good": good, "residual_bad": bad,
+           "detector_box_points": box_points.round(5).tolist(), "detector_images": n_detected}
     model = Model(shape=sm, textures=tuple(textures), couples=couples, config=cfg)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits]), timings)

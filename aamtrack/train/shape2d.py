@@ -29,8 +29,29 @@ def procrustes_mean(shapes: np.ndarray, *, n_iter: int = 10) -> tuple[np.ndarray
     return ref, aligned
 
 
-def pca_shape_model(points: np.ndarray, *, variance: float = 0.97, max_modes: int = 12) -> ShapeModel:
-    """2D ShapeModel from (n, 68, 2) annotated points (image axes, y down)."""
+# The outline of the 68 points (jaw, then brows right to left) and how far the outer ring lies beyond it.
+OUTLINE = tuple(range(17)) + tuple(range(26, 16, -1))
+RING = 0.12
+
+
+def ring_operator(n_points: int = 68, *, outline=OUTLINE, ring: float = RING) -> np.ndarray:
+    """(n_points + len(outline), n_points) linear map from the 68 points to the points plus an outer ring:
+    ring vertex i = outline point i pushed ``ring`` of its distance away from the centroid of all points.
+    The ring puts the face's contour (jaw against neck or background) inside the texture map, so the
+    search sees the edge from both sides; being linear in the points, it moves with shape and pose."""
+    centroid = np.full(n_points, 1.0 / n_points)
+    rows = [np.eye(n_points)]
+    for i in outline:
+        r = -ring * centroid
+        r[i] += 1.0 + ring
+        rows.append(r[None])
+    return np.vstack(rows)
+
+
+def pca_shape_model(points: np.ndarray, *, variance: float = 0.97, max_modes: int = 12,
+                    ring: float = RING) -> ShapeModel:
+    """2D ShapeModel from (n, 68, 2) annotated points (image axes, y down); vertices are the 68 points and
+    an outer ring (``ring_operator``; ``ring=0`` for none)."""
     up = np.stack([points[..., 0], -points[..., 1]], axis=-1)
     mean, aligned = procrustes_mean(up)
     X = (aligned - mean).reshape(len(aligned), -1)
@@ -38,12 +59,15 @@ def pca_shape_model(points: np.ndarray, *, variance: float = 0.97, max_modes: in
     var = sv ** 2 / len(X)
     n_modes = int(min(max_modes, np.searchsorted(np.cumsum(var) / var.sum(), variance) + 1))
     sd = np.sqrt(var[:n_modes])
-    basis = np.zeros((n_modes, 68, 3))
-    basis[:, :, :2] = (Vt[:n_modes] * sd[:, None]).reshape(n_modes, 68, 2)  # unit coefficient = 1 sd
-    mean3 = np.column_stack([mean, np.zeros(68)])
-    tri = Delaunay(mean).simplices.astype(np.int32)
+    R = ring_operator(ring=ring) if ring > 0 else np.eye(68)
+    n_v = len(R)
+    basis = np.zeros((n_modes, n_v, 3))
+    modes = (Vt[:n_modes] * sd[:, None]).reshape(n_modes, 68, 2)  # unit coefficient = 1 sd
+    basis[:, :, :2] = np.einsum("vl,kld->kvd", R, modes)
+    mean3 = np.column_stack([R @ mean, np.zeros(n_v)])
+    tri = Delaunay(mean3[:, :2]).simplices.astype(np.int32)
     return ShapeModel(
-        kind="2d", mean=mean3, shape_units=np.zeros((0, 68, 3)), basis=basis, triangles=tri,
-        landmark_map=np.eye(68), shape_names=(), coef_names=tuple(f"pca_{i}" for i in range(n_modes)),
+        kind="2d", mean=mean3, shape_units=np.zeros((0, n_v, 3)), basis=basis, triangles=tri,
+        landmark_map=np.eye(68, n_v), shape_names=(), coef_names=tuple(f"pca_{i}" for i in range(n_modes)),
         coef_lo=np.full(n_modes, -3.0), coef_hi=np.full(n_modes, 3.0), shape_sd=np.zeros(0),
     )

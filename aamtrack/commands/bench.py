@@ -1,0 +1,55 @@
+"""``aamtrack bench INPUT``: per-stage frame times and fps at several resolutions, both models."""
+
+from __future__ import annotations
+
+import argparse
+import platform
+from pathlib import Path
+
+from ..errors import InputError
+from ..io.summary import write_summary_json
+from ..models import default_model_path
+from ..track.benchmark import format_table, run_bench
+
+
+def register(sub) -> None:
+    p = sub.add_parser("bench", help="time the tracker per stage at several resolutions",
+                       description="Median, p90 and max per-frame times (decode, detect, pyramid, search, output), "
+                                   "tracking and end-to-end fps; numba warm-up reported apart.")
+    p.add_argument("input", help="video file or folder of frames")
+    p.add_argument("--model", type=Path, action="append", help="model file (repeatable; default: both shipped)")
+    p.add_argument("--sizes", default="320x240,640x480,1280x720", help="resolutions WxH, comma-separated")
+    p.add_argument("--frames", type=int, default=300, help="frames per run (default 300)")
+    p.add_argument("--threads", type=int, default=1, help="OpenCV threads (default 1: single-core figures)")
+    p.add_argument("--json", type=Path, help="also write the results as JSON")
+    p.set_defaults(func=run)
+
+
+def _sizes(text: str) -> list[tuple[int, int]]:
+    try:
+        sizes = [tuple(int(v) for v in s.lower().split("x")) for s in text.split(",")]
+        if any(len(s) != 2 or min(s) < 16 for s in sizes):
+            raise ValueError
+    except ValueError:
+        raise InputError(f"--sizes {text!r}: expected WxH[,WxH...] such as 640x480")
+    return sizes
+
+
+def run(args: argparse.Namespace) -> int:
+    models = args.model or [default_model_path("3d"), default_model_path("2d")]
+    rows = run_bench(args.input, models, _sizes(args.sizes), max_frames=args.frames, threads=args.threads)
+    print(f"machine: {platform.node()} {platform.machine()} {_cpu_name()}, python {platform.python_version()}")
+    print(format_table(rows))
+    if args.json:
+        write_summary_json(args.json, {"machine": _cpu_name(), "rows": rows})
+    return 0
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"

@@ -1,0 +1,106 @@
+"""Per-frame timing of the tracker on a recorded input at several resolutions (``aamtrack bench``).
+
+Stages per frame: decode (reading and resizing the frame), detect (Haar, only on frames without a track),
+pyramid (crop, pyramid, contrast normalisation), search (all couples), output (CSV row). Numba compile /
+cache-load time is measured apart by a warm-up before the first frame. Single-core by default: OpenCV is
+asked for one thread and numba kernels are serial.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..io.csvout import TrackingCsvWriter
+from ..io.frames import open_frames
+from ..model import load_model
+from .tracker import Tracker
+
+
+def _stats(values) -> dict | None:
+    if not values:
+        return None
+    v = 1e3 * np.asarray(values)
+    return {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(v.max()), "n": len(v)}
+
+
+def warmup(tracker: Tracker) -> float:
+    """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds."""
+    t = time.perf_counter()
+    img = np.full((240, 320), 128, np.uint8)
+    q = tracker.initial_q((110.0, 70.0, 100.0, 100.0))
+    tracker.fit_roi(img.astype(np.float32), q)
+    return time.perf_counter() - t
+
+
+def bench_one(input_, model_path: Path, size: tuple[int, int], *, max_frames: int = 300) -> dict:
+    """Timings of one model at one resolution over the first ``max_frames`` frames."""
+    model = load_model(model_path)
+    tracker = Tracker(model)
+    t_warm = warmup(tracker)
+    frames, t_dec = [], []
+    with open_frames(input_, resize=size) as src:
+        it = iter(src)
+        while len(frames) < max_frames:
+            t = time.perf_counter()
+            try:
+                f = next(it)
+            except StopIteration:
+                break
+            t_dec.append(time.perf_counter() - t)
+            frames.append(f)
+    sm = model.shape
+    stages = {"detect": [], "pyramid": [], "search": [], "output": []}
+    track_only, n_ok = [], 0
+    with tempfile.TemporaryDirectory() as tmp:
+        with TrackingCsvWriter(Path(tmp) / "b.csv", anim_names=sm.coef_names if sm.kind == "3d" else (),
+                               shape_names=sm.shape_names if sm.kind == "3d" else sm.coef_names,
+                               with_3d=sm.kind == "3d") as w:
+            t_all = time.perf_counter()
+            for res in tracker.track(frames):
+                t = time.perf_counter()
+                w.write(res)
+                stages["output"].append(time.perf_counter() - t)
+                for k in ("detect", "pyramid", "search"):
+                    if k in res.timings:
+                        stages[k].append(res.timings[k])
+                if res.status == "tracked":
+                    track_only.append(res.timings["pyramid"] + res.timings["search"])
+                n_ok += res.success
+            t_track_total = time.perf_counter() - t_all
+    n = len(frames)
+    track_med = float(np.median(track_only)) if track_only else float("nan")
+    return {
+        "model": str(model_path), "kind": sm.kind, "size": f"{size[0]}x{size[1]}", "frames": n,
+        "frames_tracked": int(n_ok), "warmup_s": t_warm,
+        "ms": {"decode": _stats(t_dec), **{k: _stats(v) for k, v in stages.items()}, "track": _stats(track_only)},
+        "fps_tracking": 1.0 / track_med if track_only else float("nan"),
+        "fps_end_to_end": n / (sum(t_dec) + t_track_total) if n else float("nan"),
+    }
+
+
+def run_bench(input_, model_paths: list[Path], sizes: list[tuple[int, int]], *, max_frames: int = 300,
+              threads: int = 1) -> list[dict]:
+    cv2.setNumThreads(threads)
+    return [bench_one(input_, m, s, max_frames=max_frames) for m in model_paths for s in sizes]
+
+
+def format_table(rows: list[dict]) -> str:
+    head = (f"{'model':<6}{'size':>10}{'frames':>7}{'ok':>6}{'warmup s':>9} | "
+            + " | ".join(f"{k:^17}" for k in ("decode", "detect", "pyramid", "search", "output", "track"))
+            + f" | {'fps track':>9}{'fps e2e':>8}")
+    sub = " " * 38 + " | " + " | ".join(f"{'med':>5} {'p90':>5} {'max':>5}" for _ in range(6)) + " |"
+    lines = [head, sub]
+    for r in rows:
+        cells = []
+        for k in ("decode", "detect", "pyramid", "search", "output", "track"):
+            s = r["ms"][k]
+            cells.append(f"{s['median']:5.2f} {s['p90']:5.2f} {s['max']:5.1f}" if s else f"{'-':>17}")
+        lines.append(f"{r['kind']:<6}{r['size']:>10}{r['frames']:>7}{r['frames_tracked']:>6}{r['warmup_s']:>9.2f} | "
+                     + " | ".join(cells) + f" | {r['fps_tracking']:>9.0f}{r['fps_end_to_end']:>8.0f}")
+    lines.append("times in ms per frame; 'track' = pyramid + search on frames already tracked (face found)")
+    return "\n".join(lines)

@@ -1,0 +1,78 @@
+"""Face localisation for the first frame and after a loss (poster, "Face localization"): OpenCV's Haar
+frontal face detector (the cascade shipped in the opencv wheel), the largest face, and a rough pose fitted to
+feature points guessed from the box. Where the points sit in a Haar box is learned at training time
+(``calibrate_detector``: mean of the annotated landmarks in box units over the training images)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+
+log = logging.getLogger(__name__)
+
+CASCADE = "haarcascade_frontalface_default.xml"
+DETECT_WIDTH = 320  # frames are detected at about this width (faster; faces over ~25% of the width)
+
+
+class HaarDetector:
+    """``detect(gray)`` -> (x, y, w, h) float box of the largest face in pixels, or None."""
+
+    def __init__(self, *, min_face_fraction: float = 0.08, scale_factor: float = 1.1, min_neighbors: int = 4):
+        path = Path(cv2.data.haarcascades) / CASCADE
+        self.cascade = cv2.CascadeClassifier(str(path))
+        if self.cascade.empty():
+            raise InputError(f"{path}: cannot load OpenCV's Haar face cascade (opencv wheel without cascades?)")
+        self.min_face_fraction = min_face_fraction
+        self.scale_factor = scale_factor
+        self.min_neighbors = min_neighbors
+
+    def detect_all(self, gray: np.ndarray) -> np.ndarray:
+        """(n, 4) float boxes (x, y, w, h), largest first."""
+        if gray.dtype != np.uint8:
+            gray = np.clip(gray, 0, 255).astype(np.uint8)
+        f = min(1.0, DETECT_WIDTH / gray.shape[1])
+        small = cv2.resize(gray, None, fx=f, fy=f, interpolation=cv2.INTER_AREA) if f < 1 else gray
+        small = cv2.equalizeHist(small)
+        m = max(20, int(self.min_face_fraction * min(small.shape)))
+        boxes = self.cascade.detectMultiScale(small, scaleFactor=self.scale_factor,
+                                              minNeighbors=self.min_neighbors, minSize=(m, m))
+        if len(boxes) == 0:
+            return np.zeros((0, 4))
+        boxes = np.asarray(boxes, float) / f
+        return boxes[np.argsort(-boxes[:, 2] * boxes[:, 3])]
+
+    def detect(self, gray: np.ndarray):
+        boxes = self.detect_all(gray)
+        return boxes[0] if len(boxes) else None
+
+
+def guess_points(box, box_points: np.ndarray) -> np.ndarray:
+    """(68, 2) landmarks guessed from a box with the learned mean positions ``box_points`` (box units)."""
+    x, y, w, h = box
+    return np.column_stack([x + w * box_points[:, 0], y + h * box_points[:, 1]])
+
+
+def calibrate_detector(images, points: np.ndarray, detector: HaarDetector | None = None) -> tuple[np.ndarray, int]:
+    """Mean landmark positions in Haar-box units over the images where the detector finds the annotated face
+    (box centre within a quarter box of the landmarks' centre). Returns ((68, 2), number of images used)."""
+    detector = detector or HaarDetector()
+    rel = []
+    for img, pts in zip(images, points):
+        gray = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        centre = pts.mean(0)
+        for x, y, w, h in detector.detect_all(gray):
+            if np.hypot(x + w / 2 - centre[0], y + h / 2 - centre[1]) < 0.25 * w:
+                rel.append(np.column_stack([(pts[:, 0] - x) / w, (pts[:, 1] - y) / h]))
+                break
+    if not rel:  # e.g. synthetic faces: fall back to the landmarks' own square box (logged)
+        log.warning("the Haar detector found none of the training faces; box geometry taken from the landmarks")
+        for pts in points:
+            c, side = pts.mean(0), np.ptp(pts, axis=0).max()
+            rel.append((pts - (c - side / 2)) / side)
+        return np.mean(rel, axis=0), 0
+    return np.mean(rel, axis=0), len(rel)

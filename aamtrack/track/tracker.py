@@ -1,0 +1,155 @@
+"""Video tracker: detection, then frame-to-frame active search, confidence, loss and re-detection.
+
+``Tracker.track(frames)`` is a generator: it takes frames (objects with ``index``, ``timestamp``, ``image``
+(BGR/grey or None) and optionally ``dropped``) and yields one FrameResult per frame, in order. Its loop state
+(the current parameters, the person's sigma) lives in the generator's locals, so one Tracker can serve several
+videos. With several faces in view the largest is tracked.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ..mesh.shape_model import N_POSE
+from ..model import Model
+from .detector import HaarDetector, guess_points
+from .pyramid import build_pyramid, octave_for, to_gray32
+from .result import FitResult, FrameResult
+from .search import Searcher
+from ..train.shape_fit import initial_pose
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """min_confidence: below it a frame is lost and the detector runs on the next frame.
+    min_inside: share of the 68 landmarks that must lie inside the frame.
+    roi_margin: the search works on a crop of the face's box grown by this share of its size on each side.
+    predict: constant-velocity prediction of the pose (damped by ``predict_damping``)."""
+
+    min_confidence: float = 0.2
+    min_inside: float = 0.7
+    roi_margin: float = 0.5
+    predict: bool = True
+    predict_damping: float = 0.5
+
+
+class Tracker:
+    def __init__(self, model: Model, *, config: TrackerConfig = TrackerConfig(),
+                 detector: HaarDetector | None = None):
+        self.model = model
+        self.config = config
+        self.searcher = Searcher(model)
+        self.detector = detector or HaarDetector()
+        cfg = model.config
+        self.box_points = np.asarray(cfg["detector_box_points"], float)
+        self.r_good = float(cfg["residual_good"])
+        self.r_bad = float(cfg["residual_bad"])
+
+    # -- one image -------------------------------------------------------------------------------------
+    def confidence(self, residual: float) -> float:
+        """0..1 from the finest couple's RMS residual: 1 at the training fits' median, 0 at a displaced fit."""
+        return float(np.clip((self.r_bad - residual) / (self.r_bad - self.r_good), 0.0, 1.0))
+
+    def fit_roi(self, gray: np.ndarray, q0: np.ndarray, shape_params=None) -> tuple[FitResult, float]:
+        """Search on a crop around the face at q0 (exact: the model is translation-equivariant).
+        Returns (result in frame coordinates, pyramid seconds)."""
+        t0 = time.perf_counter()
+        sm = self.model.shape
+        v = sm.project(q0, shape_params)
+        lo, hi = v.min(0), v.max(0)
+        m = self.config.roi_margin * (hi - lo).max()
+        H, W = gray.shape
+        x0, y0 = int(max(0, np.floor(lo[0] - m))), int(max(0, np.floor(lo[1] - m)))
+        x1, y1 = int(min(W, np.ceil(hi[0] + m))), int(min(H, np.ceil(hi[1] + m)))
+        if x1 - x0 < 8 or y1 - y0 < 8:
+            x0, y0, x1, y1 = 0, 0, W, H
+        q = np.array(q0, float)
+        q[4] -= x0
+        q[5] -= y0
+        n_oct = 1 + max(octave_for(q[3] * self.searcher.width, c.face_px, self.searcher.n_octaves)
+                        for c in self.model.couples)
+        pyr = build_pyramid(np.ascontiguousarray(gray[y0:y1, x0:x1], np.float32), n_oct,
+                            lcn_sigma=self.searcher.lcn_sigma)
+        t_pyr = time.perf_counter() - t0
+        res = self.searcher.fit(pyr, q, shape_params)
+        p = res.p.copy()
+        p[4] += x0
+        p[5] += y0
+        off = np.array([x0, y0], float)
+        return FitResult(p=p, landmarks=res.landmarks + off, vertices=res.vertices + off, residual=res.residual,
+                         iterations=res.iterations, errors=res.errors), t_pyr
+
+    def initial_q(self, box, shape_params=None) -> np.ndarray:
+        """Rough pose from the detection box (poster: guessed feature points, least squares)."""
+        return initial_pose(self.model.shape, guess_points(box, self.box_points), shape_params)
+
+    def _inside(self, pts: np.ndarray, shape: tuple) -> float:
+        H, W = shape
+        ok = (pts[:, 0] >= 0) & (pts[:, 0] < W) & (pts[:, 1] >= 0) & (pts[:, 1] < H)
+        return float(ok.mean())
+
+    def _result(self, frame, status, res: FitResult | None, conf: float, shape_params, timings) -> FrameResult:
+        if res is None or status not in ("detected", "tracked"):
+            return FrameResult(frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
+                               timings=timings)
+        sm = self.model.shape
+        q = res.p
+        is3d = sm.kind == "3d"
+        return FrameResult(
+            frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
+            landmarks=res.landmarks, landmarks3d=sm.landmarks3d(q, shape_params) if is3d else None,
+            rotation=q[:3].copy(), translation=q[4:6].copy(), scale=float(q[3]),
+            anim_params=q[N_POSE:].copy() if is3d else np.zeros(0),
+            shape_params=(np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float))
+            if is3d else q[N_POSE:].copy(),
+            vertices=res.vertices, timings=timings)
+
+    # -- a video ---------------------------------------------------------------------------------------
+    def track(self, frames: Iterable) -> Iterator[FrameResult]:
+        cfg = self.config
+        q = None          # current parameters, None when there is no track
+        q_prev = None     # previous frame's parameters (motion prediction)
+        shape_params = None
+        for frame in frames:
+            if getattr(frame, "dropped", False):
+                yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped")
+                continue
+            if frame.image is None:
+                yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="unreadable")
+                q_prev = None
+                continue
+            timings = {}
+            t0 = time.perf_counter()
+            gray = to_gray32(frame.image)
+            if q is None:
+                box = self.detector.detect(frame.image if frame.image.ndim == 2 else gray)
+                timings["detect"] = time.perf_counter() - t0
+                if box is None:
+                    yield self._result(frame, "lost", None, 0.0, shape_params, timings)
+                    continue
+                start, status = self.initial_q(box, shape_params), "detected"
+            else:
+                start, status = q.copy(), "tracked"
+                if cfg.predict and q_prev is not None:
+                    step = cfg.predict_damping * (q - q_prev)
+                    start[[2, 4, 5]] += step[[2, 4, 5]]
+            t1 = time.perf_counter()
+            res, t_pyr = self.fit_roi(gray, start, shape_params)
+            timings["pyramid"] = t_pyr
+            timings["search"] = time.perf_counter() - t1 - t_pyr
+            conf = self.confidence(res.residual)
+            ok = conf >= cfg.min_confidence and self._inside(res.landmarks, gray.shape) >= cfg.min_inside
+            if ok:
+                q_prev = q if status == "tracked" else None
+                q = res.p
+                yield self._result(frame, status, res, conf, shape_params, timings)
+            else:
+                q = q_prev = None
+                yield self._result(frame, "lost", res, conf, shape_params, timings)

@@ -1,0 +1,59 @@
+"""Shape learning recovers known parameters from synthetic projections."""
+
+import numpy as np
+
+from aamtrack.mesh.candide import read_wfm
+from aamtrack.mesh.candide_model import candide_shape_model
+from aamtrack.mesh.landmarks import candide_landmark_map
+from aamtrack.mesh.shape_model import ShapeModel
+from aamtrack.train.shape2d import pca_shape_model
+from aamtrack.train.shape_fit import fit_landmarks
+from conftest import SEED, shared_path
+from synth import face_layout
+
+
+def synthetic_3d_model(rng) -> ShapeModel:
+    mean = np.column_stack([face_layout(), 0.3 * np.cos(3 * face_layout()[:, 0])])
+    return ShapeModel(kind="3d", mean=mean, shape_units=0.05 * rng.normal(size=(3, 68, 3)),
+                      basis=0.05 * rng.normal(size=(2, 68, 3)), triangles=np.zeros((0, 3), np.int32),
+                      landmark_map=np.eye(68), shape_names=("a", "b", "c"), coef_names=("u", "v"),
+                      coef_lo=np.full(2, -1.0), coef_hi=np.full(2, 1.0), shape_sd=np.ones(3))
+
+
+def test_3d_fit_recovers_projection():
+    rng = np.random.default_rng(SEED)
+    sm = synthetic_3d_model(rng)
+    for _ in range(5):
+        q = np.r_[rng.normal(0, 0.2, 3), 150 * np.exp(rng.normal(0, 0.2)), rng.uniform(100, 200, 2),
+                  rng.uniform(-0.8, 0.8, 2)]
+        sigma = rng.normal(0, 0.7, 3)
+        pts = sm.landmarks(q, sigma)
+        fit = fit_landmarks(sm, pts)
+        assert fit.rms_px < 0.3  # sub-pixel (the weak priors on sigma and alpha cost a little)
+        assert np.abs(fit.q[:3] - q[:3]).max() < np.radians(2.0)  # pose angles within 2 degrees
+
+
+def test_2d_fit_recovers_points_within_the_model():
+    rng = np.random.default_rng(SEED)
+    base = face_layout() * np.array([1, -1]) * 100 + 200
+    shapes = base + rng.normal(0, 2.0, (40, 68, 2))
+    sm = pca_shape_model(shapes)
+    q = np.zeros(sm.n_q)
+    q[2:6] = 0.1, 180.0, 160.0, 150.0
+    q[6:9] = 1.0, -0.5, 0.7
+    pts = sm.landmarks(q)
+    fit = fit_landmarks(sm, pts)
+    assert fit.rms_px < 0.1  # sub-pixel: the points lie in the model's span
+    assert fit.q[0] == 0 and fit.q[1] == 0  # the 2D pose is a similarity
+
+
+def test_candide_fit_recovers_projection():
+    c = read_wfm(shared_path("candide3", "candide3.wfm"))
+    layout = face_layout() * np.array([1.0, -1.0])
+    sm = candide_shape_model(c, candide_landmark_map(c.vertices, c.triangles, layout))
+    rng = np.random.default_rng(SEED)
+    q = np.r_[0.1, -0.25, 0.05, 120.0, 180.0, 170.0, 0.4, 0.2, 0, 0, -0.3, 0.2, 0.1]
+    sigma = rng.normal(0, 0.5, sm.n_shape)
+    pts = sm.landmarks(q, sigma)
+    fit = fit_landmarks(sm, pts)
+    assert fit.rms_px < 0.5  # sub-pixel

@@ -18,7 +18,7 @@ def shared_path(*parts: str) -> Path:
         pytest.skip(f"needs ../shared/data/{'/'.join(parts)} (absent here)")
     return path
 
-SYNTH_COUPLES = ((24, 16), (48, 32))
+SYNTH_COUPLES = ((32, 16), (64, 24), (128, 40))
 
 
 @pytest.fixture(scope="session")
@@ -27,7 +27,7 @@ def synth_data():
     import numpy as np
     import synth
 
-    return synth.random_faces(24, np.random.default_rng(SEED))
+    return synth.random_faces(24, np.random.default_rng(SEED), size=(220, 220), scale=130.0)
 
 
 @pytest.fixture(scope="session")
@@ -36,5 +36,5 @@ def synth_model(synth_data):
     from aamtrack.train.pipeline import TrainConfig, train_model
 
     images, points = synth_data
-    model, _ = train_model(images, points, "2d", config=TrainConfig(couples=SYNTH_COUPLES, pose_only_couples=1))
+    model, _ = train_model(images, points, "2d", config=TrainConfig(couples=SYNTH_COUPLES, pose_only_couples=2))
     return model

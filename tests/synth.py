@@ -27,10 +27,14 @@ def face_layout() -> np.ndarray:
 
 
 def texture_fn(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Smooth grey texture over model coordinates (values about 40..220)."""
-    v = 130 + 45 * np.sin(9 * x) * np.cos(7 * y) + 30 * np.cos(13 * x + 5 * y)
-    for cx, cy, s, a in ((-0.2, 0.15, 0.06, -80), (0.2, 0.15, 0.06, -80), (0, -0.32, 0.09, -60), (0, 0.0, 0.05, 40)):
-        v += a * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * s * s))
+    """Smooth grey texture over model coordinates: skin with fine detail (for the search to lock on to) and
+    dark eyes, brows, nostrils and mouth, a bright nose ridge (so OpenCV's Haar face cascade fires on it)."""
+    v = 175 + 14 * np.sin(9 * x) * np.cos(7 * y) + 10 * np.cos(17 * x + 6 * y)
+    for cx, cy, sx, sy, a in ((-0.2, 0.15, 0.07, 0.03, -120), (0.2, 0.15, 0.07, 0.03, -120),
+                              (-0.22, 0.3, 0.1, 0.02, -90), (0.22, 0.3, 0.1, 0.02, -90),
+                              (0, -0.32, 0.13, 0.04, -100), (0, 0.02, 0.03, 0.12, 25),
+                              (-0.08, -0.1, 0.03, 0.02, -60), (0.08, -0.1, 0.03, 0.02, -60)):
+        v += a * np.exp(-((x - cx) ** 2 / (2 * sx * sx) + (y - cy) ** 2 / (2 * sy * sy)))
     return v
 
 
@@ -77,9 +81,38 @@ def random_faces(n: int, rng: np.random.Generator, *, size=(160, 160), scale=90.
     ref = face_layout()
     images, points = [], []
     for _ in range(n):
-        shape = ref + rng.normal(0, shape_sd, (1, 2)) * ref * np.array([1.0, 1.0]) + rng.normal(0, shape_sd / 3, ref.shape)
+        shape = ref + rng.normal(0, shape_sd, (1, 2)) * ref * np.array([1.0, 1.0]) + rng.normal(0, shape_sd / 10, ref.shape)
         pts = project2d(shape, rng.normal(0, roll_sd), scale * np.exp(rng.normal(0, 0.05)),
                         size[0] / 2 + rng.normal(0, shift_sd), size[1] / 2 + rng.normal(0, shift_sd))
         images.append(render(shape, pts, size, noise=2.0, rng=rng))
         points.append(pts)
     return images, np.array(points)
+
+
+def moving_face_frames(n: int, *, size=(320, 240), scale=130.0, amplitude=10.0, away=()) -> tuple[list, np.ndarray]:
+    """n BGR frames of the mean face moving smoothly (translation up to ``amplitude`` px, roll up to 4 degrees);
+    frames whose index is in ``away`` show no face. Returns (frames, (n, 68, 2) true landmarks, NaN when away)."""
+    ref = face_layout()
+    frames, truth = [], np.full((n, 68, 2), np.nan)
+    for i in range(n):
+        if i in away:
+            pts = project2d(ref, 0.0, scale, -10 * size[0], -10 * size[1])
+        else:
+            t = 2 * np.pi * i / max(n, 1)
+            pts = project2d(ref, np.radians(4) * np.sin(t), scale * (1 + 0.03 * np.sin(2 * t)),
+                            size[0] / 2 + amplitude * np.sin(t), size[1] / 2 + 0.6 * amplitude * np.cos(t))
+            truth[i] = pts
+        g = render(ref, pts, size)
+        frames.append(np.dstack([g, g, g]))
+    return frames, truth
+
+
+def write_video(path, frames, fps: float = 25.0, fourcc: str = "MJPG") -> None:
+    import cv2
+
+    h, w = frames[0].shape[:2]
+    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), fps, (w, h))
+    assert vw.isOpened()
+    for f in frames:
+        vw.write(f)
+    vw.release()

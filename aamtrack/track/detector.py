@@ -33,6 +33,8 @@ class HaarDetector:
 
     def detect_all(self, gray: np.ndarray) -> np.ndarray:
         """(n, 4) float boxes (x, y, w, h), largest first."""
+        if gray.ndim == 3:
+            gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
             gray = np.clip(gray, 0, 255).astype(np.uint8)
         f = min(1.0, DETECT_WIDTH / gray.shape[1])

@@ -30,11 +30,16 @@ log = logging.getLogger(__name__)
 class TrackerConfig:
     """min_confidence: below it a frame is lost and the detector runs on the next frame.
     min_inside: share of the 68 landmarks that must lie inside the frame.
+    max_turn, max_rescale: a frame whose fit turned more than ``max_turn`` radians about any axis or rescaled
+    by more than ``max_rescale`` (log) since the previous frame is taken as lost: no head does that in 1/25 s,
+    a search that slid onto the background does (the residual alone can miss it on textured backgrounds).
     roi_margin: the search works on a crop of the face's box grown by this share of its size on each side.
     predict: constant-velocity prediction of the pose (damped by ``predict_damping``)."""
 
-    min_confidence: float = 0.2
+    min_confidence: float = 0.5
     min_inside: float = 0.7
+    max_turn: float = 0.35
+    max_rescale: float = 0.25
     roi_margin: float = 0.5
     predict: bool = True
     predict_damping: float = 0.5
@@ -146,6 +151,9 @@ class Tracker:
             timings["search"] = time.perf_counter() - t1 - t_pyr
             conf = self.confidence(res.residual)
             ok = conf >= cfg.min_confidence and self._inside(res.landmarks, gray.shape) >= cfg.min_inside
+            if ok and status == "tracked":
+                ok = (np.abs(res.p[:3] - q[:3]).max() <= cfg.max_turn
+                      and abs(np.log(res.p[3] / q[3])) <= cfg.max_rescale)
             if ok:
                 q_prev = q if status == "tracked" else None
                 q = res.p

@@ -41,12 +41,16 @@ class TrainConfig:
     pose_only_couples: how many of the coarsest couples search the pose only (shape is left to finer ones).
     lcn_sigma: local contrast normalisation of every pyramid octave (pixels; 0 = off). On helen_test it took
     the displaced-start search from mean NME 0.080 to 0.065 (2D model, 150 training images).
+    ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
+    it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
+    onto the static background), so it is off by default.
     forehead_cut: 3D only, texture triangles whose centre is above this model y (hairline) are left out."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     n_appearance: int = 8
     pose_only_couples: int = 2
     lcn_sigma: float = 8.0
+    ring: float = 0.0
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
@@ -83,7 +87,7 @@ def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, confi
                 progress: Progress = _no_progress) -> tuple[ShapeModel, list[ShapeFit]]:
     """The shape model and each image's fit (pose, sigma, coefficients)."""
     if kind == "2d":
-        sm = pca_shape_model(points)
+        sm = pca_shape_model(points, ring=config.ring)
         return sm, [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
     if candide is None:
         raise ValueError("the 3D model needs the Candide mesh")

@@ -49,7 +49,7 @@ def ring_operator(n_points: int = 68, *, outline=OUTLINE, ring: float = RING) ->
 
 
 def pca_shape_model(points: np.ndarray, *, variance: float = 0.97, max_modes: int = 12,
-                    ring: float = RING) -> ShapeModel:
+                    ring: float = 0.0) -> ShapeModel:
     """2D ShapeModel from (n, 68, 2) annotated points (image axes, y down); vertices are the 68 points and
     an outer ring (``ring_operator``; ``ring=0`` for none)."""
     up = np.stack([points[..., 0], -points[..., 1]], axis=-1)

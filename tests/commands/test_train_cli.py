@@ -26,11 +26,11 @@ def dataset(tmp_path, synth_data):
 def test_train_2d_writes_a_loadable_model(tmp_path, dataset, capsys):
     out = tmp_path / "m.npz"
     report = tmp_path / "fit.csv"
-    code = main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "24:16,48:24",
+    code = main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "32:16,64:24",
                  "--report", str(report)])
     assert code == 0
     m = load_model(out)
-    assert m.kind == "2d" and [c.face_px for c in m.couples] == [24.0, 48.0]
+    assert m.kind == "2d" and [c.face_px for c in m.couples] == [32.0, 64.0]
     assert len(report.read_text().splitlines()) == 13  # header + one row per image
     assert "trained 2d model on 12 images" in capsys.readouterr().out
 

@@ -10,7 +10,7 @@ import synth
 
 def test_search_recovers_true_landmarks(synth_model):
     rng = np.random.default_rng(SEED + 1)
-    images, points = synth.random_faces(8, rng)  # faces not seen in training
+    images, points = synth.random_faces(8, rng, size=(220, 220), scale=130.0)  # faces not seen in training
     searcher = Searcher(synth_model)
     sm = synth_model.shape
     before, after, floor = [], [], []

@@ -1,0 +1,92 @@
+"""The tracker on synthetic videos with known motion."""
+
+import numpy as np
+import pytest
+
+from aamtrack.io.frames import open_frames
+from aamtrack.track.replay import realtime
+from aamtrack.track.tracker import Tracker
+import synth
+
+
+@pytest.fixture(scope="module")
+def moving_video(tmp_path_factory):
+    frames, truth = synth.moving_face_frames(30)
+    path = tmp_path_factory.mktemp("v") / "moving.avi"
+    synth.write_video(path, frames)
+    return path, truth
+
+
+def test_tracks_a_written_video_to_a_pixel(moving_video, synth_model):
+    path, truth = moving_video
+    with open_frames(path) as src:
+        results = list(Tracker(synth_model).track(src))
+    assert [r.frame for r in results] == list(range(30))  # one result per frame, in order
+    assert all(r.success for r in results)
+    assert results[0].status == "detected" and all(r.status == "tracked" for r in results[1:])
+    err = np.array([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(results, truth)])
+    print(f"mean landmark error {err.mean():.2f} px, worst frame {err.max():.2f} px")
+    assert err.mean() < 1.0  # sub-pixel to 1 px (MJPG compression, model floor ~0.6 px)
+    assert err.max() < 2.0
+
+
+def test_face_leaves_and_comes_back(synth_model):
+    frames, truth = synth.moving_face_frames(24, away=range(8, 14))
+    results = list(Tracker(synth_model).track(
+        synth_frame(i, f) for i, f in enumerate(frames)))
+    status = [r.status for r in results]
+    assert all(s == "lost" for s in status[8:14])  # no face: lost, detector keeps trying
+    assert all(not np.isfinite(r.landmarks).any() for r in results[8:14])
+    back = status.index("detected", 14)  # re-detected when it comes back (Haar may miss a frame or two)
+    assert back <= 18
+    assert all(s == "tracked" for s in status[back + 1:])
+    err = [np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(results[back:], truth[back:])]
+    assert np.mean(err) < 1.5  # back on the face within about a pixel
+
+
+def test_unreadable_frames_are_recorded_and_tracking_goes_on(synth_model):
+    frames, truth = synth.moving_face_frames(10)
+    frames[4] = None
+    results = list(Tracker(synth_model).track(synth_frame(i, f) for i, f in enumerate(frames)))
+    assert results[4].status == "unreadable" and not results[4].success
+    assert all(r.success for i, r in enumerate(results) if i != 4)
+
+
+def test_realtime_drops_frames_when_the_tracker_is_slower():
+    class Clock:
+        def __init__(self):
+            self.t = 0.0
+
+        def __call__(self):
+            return self.t
+
+        def sleep(self, dt):
+            self.t += dt
+
+    clock = Clock()
+    frames = [synth_frame(i, np.zeros((2, 2, 3), np.uint8)) for i in range(20)]
+    out = []
+    for f in realtime(frames, fps=10.0, clock=clock, sleep=clock.sleep):
+        out.append(f)
+        if not f.dropped:
+            clock.t += 0.25  # the "tracker" takes 2.5 frame periods
+    assert [f.index for f in out] == list(range(20))  # every frame accounted for, in order
+    processed = [f.index for f in out if not f.dropped]
+    assert processed[:4] == [0, 2, 5, 7]  # after each 250 ms job, the newest arrived frame
+    assert sum(f.dropped for f in out) == 20 - len(processed) > 0
+
+
+def test_realtime_waits_for_frames_when_the_tracker_is_faster():
+    t = [0.0]
+    slept = []
+    frames = [synth_frame(i, None) for i in range(5)]
+    out = list(realtime(frames, fps=25.0, clock=lambda: t[0],
+                        sleep=lambda dt: (slept.append(dt), t.__setitem__(0, t[0] + dt))))
+    assert not any(f.dropped for f in out)
+    assert np.allclose(slept, [0.04] * 4)  # each frame waited for at the video's rate
+
+
+def synth_frame(i, image):
+    from aamtrack.track.replay import ReplayFrame
+
+    return ReplayFrame(i, i / 25.0, image)

@@ -37,22 +37,28 @@ class Texture:
 class Couple:
     """One couple: runs at the octave where the face is >= ``face_px`` wide, on texture ``texture``, with
     update matrix U (n_free, N) float32 (delta = U e) for the parameters ``free`` (n_free,) int64 of q
-    (coarse couples may search the pose only)."""
+    (coarse couples may search the pose only); prior_step (n_free, n_free) and prior (n_free,) carry the
+    Gaussian prior on the coefficients (see ``aamtrack.train.update.update_matrix``)."""
 
     face_px: float
     texture: int
     U: np.ndarray
     free: np.ndarray
+    prior_step: np.ndarray
+    prior: np.ndarray
 
 
 @dataclass(frozen=True)
 class Model:
-    """A trained AAM. Couples are ordered coarse to fine."""
+    """A trained AAM. Couples are ordered coarse to fine. ``person`` (3D only) is a couple whose update matrix
+    also moves the shape units sigma (``ShapeModel.person_view``): the tracker runs it in the first good frames
+    of a video to estimate the person's sigma, which it then holds."""
 
     shape: ShapeModel
     textures: tuple
     couples: tuple
     config: dict = field(default_factory=dict)
+    person: Couple | None = None
 
     @property
     def kind(self) -> str:
@@ -76,8 +82,11 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays[f"tex{i}/mean"] = t.mean
         arrays[f"tex{i}/appearance"] = t.appearance
     for j, c in enumerate(model.couples):
-        arrays[f"couple{j}/U"] = c.U
-        arrays[f"couple{j}/free"] = c.free
+        for k in ("U", "free", "prior_step", "prior"):
+            arrays[f"couple{j}/{k}"] = getattr(c, k)
+    if model.person is not None:
+        for k in ("U", "free", "prior_step", "prior"):
+            arrays[f"person/{k}"] = getattr(model.person, k)
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
@@ -87,10 +96,17 @@ def save_model(model: Model, path: str | Path) -> None:
         "textures": [list(t.frame.shape) for t in model.textures],
         "couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.couples],
         "config": model.config,
+        "person": None if model.person is None else {"face_px": model.person.face_px,
+                                                     "texture": model.person.texture},
     }
     arrays["meta"] = np.array(json.dumps(meta))
     with atomic_write(path, "wb") as fh:
         np.savez_compressed(fh, **arrays)
+
+
+def _couple(data: dict, key: str, spec: dict) -> Couple:
+    return Couple(float(spec["face_px"]), int(spec["texture"]), data[f"{key}/U"],
+                  data[f"{key}/free"].astype(np.int64), data[f"{key}/prior_step"], data[f"{key}/prior"])
 
 
 def load_model(path: str | Path) -> Model:
@@ -121,13 +137,16 @@ def load_model(path: str | Path) -> Model:
             Texture(TextureFrame(tuple(shp), data[f"tex{i}/pix_xy"], data[f"tex{i}/pix_vid"],
                                  data[f"tex{i}/pix_bary"]), data[f"tex{i}/mean"], data[f"tex{i}/appearance"])
             for i, shp in enumerate(meta["textures"]))
-        couples = tuple(Couple(float(c["face_px"]), int(c["texture"]), data[f"couple{j}/U"],
-                               data[f"couple{j}/free"].astype(np.int64)) for j, c in enumerate(meta["couples"]))
+        couples = tuple(_couple(data, f"couple{j}", c) for j, c in enumerate(meta["couples"]))
+        pm = meta.get("person")
+        person = None if pm is None else _couple(data, "person", pm)
     except KeyError as exc:
         raise ModelFileError(f"{path}: corrupt model, missing {exc}")
-    for c in couples:
+    n_ext = shape.n_q + shape.n_shape
+    for c in couples + ((person,) if person is not None else ()):
         n_pix = textures[c.texture].frame.n_pixels
-        if c.U.shape != (len(c.free), n_pix) or not np.isin(c.free, shape.free).all():
+        if (c.U.shape != (len(c.free), n_pix) or c.prior_step.shape != (len(c.free),) * 2
+                or c.prior.shape != (len(c.free),) or c.free.max() >= n_ext):
             raise ModelFileError(f"{path}: corrupt model, update matrix of shape {c.U.shape}, "
                                  f"expected {(len(c.free), n_pix)}")
-    return Model(shape=shape, textures=textures, couples=couples, config=meta.get("config", {}))
+    return Model(shape=shape, textures=textures, couples=couples, config=meta.get("config", {}), person=person)

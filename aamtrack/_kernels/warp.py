@@ -171,12 +171,27 @@ def _compose(q, free, delta, step, lo, hi, out):
 
 
 @numba.njit(**NJIT)
-def _search(image, scale, shape3d, basis, q, free, lo, hi, U, mean, app, pix_vid, pix_bary, max_iter, tol):
-    """Active search on one couple: repeat warp, residual, delta = U e, try steps 1, 1/2, 1/4, 1/8 of
-    delta and keep the first that lowers the residual; stop when none does, when the residual falls by
-    less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
+def _prior_cost(q, free, prior):
+    """sum_a prior[a] * q[free[a]]^2."""
+    acc = 0.0
+    for a in range(free.shape[0]):
+        if prior[a] != 0.0:
+            acc += prior[a] * q[free[a]] * q[free[a]]
+    return acc
 
-    U (n_free, N) float32. Returns (iterations, final mean squared residual).
+
+@numba.njit(**NJIT)
+def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
+            max_iter, tol):
+    """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try steps
+    1, 1/2, 1/4, 1/8 of delta and keep the first that lowers the cost; stop when none does, when the cost
+    falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
+
+    The cost is the mean squared residual plus a Gaussian prior on the coefficients,
+    ``(|e|^2 + sum_a prior[a] q[free[a]]^2) / N``; U = -(G^T G + diag(prior))^-1 G^T and
+    prior_step = (G^T G + diag(prior))^-1 diag(prior) make delta its Gauss-Newton step (prior is 0 for
+    the pose). U (n_free, N) float32, prior_step (n_free, n_free) float64, prior (n_free,) float64.
+    Returns (iterations, final cost).
     """
     n = shape3d.shape[0]
     N = pix_vid.shape[0]
@@ -188,6 +203,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, mean, app, pix_vid
     q_try = np.empty_like(q)
     delta = np.empty(free.shape[0])
     err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e)
+    err += _prior_cost(q, free, prior) / N
     it = 0
     while it < max_iter:
         it += 1
@@ -195,6 +211,8 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, mean, app, pix_vid
             acc = 0.0
             for p in range(N):
                 acc += U[a, p] * e[p]
+            for b in range(free.shape[0]):
+                acc -= prior_step[a, b] * q[free[b]]
             delta[a] = acc
         step = 1.0
         accepted = False
@@ -202,7 +220,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, mean, app, pix_vid
         for _ in range(4):
             _compose(q, free, delta, step, lo, hi, q_try)
             err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary,
-                                verts, tex, coef, e_try)
+                                verts, tex, coef, e_try) + _prior_cost(q_try, free, prior) / N
             if err_try < err:
                 accepted = True
                 break

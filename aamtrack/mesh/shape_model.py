@@ -110,6 +110,15 @@ class ShapeModel:
         """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed)."""
         return self.landmark_map @ self.shape3d(q, shape_params)
 
+    def person_view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The same model with sigma searched too: (basis (n_coef + n_shape, n, 3), free indices, lo, hi) for
+        the extended vector q_ext = [q, sigma], the neutral shape being the mean. Sigma is bounded to
+        3 prior spreads."""
+        basis = np.ascontiguousarray(np.concatenate([self.basis, self.shape_units]))
+        free = np.r_[self.free, N_POSE + self.n_coef + np.arange(self.n_shape)].astype(np.int64)
+        lo, hi = self.bounds()
+        return basis, free, np.r_[lo, -3 * self.shape_sd], np.r_[hi, 3 * self.shape_sd]
+
     def frontal_width(self) -> float:
         """Width of the mean shape in model units (x extent): the face width that scale s multiplies."""
         x = self.mean[:, 0]

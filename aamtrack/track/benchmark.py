@@ -33,7 +33,7 @@ def warmup(tracker: Tracker) -> float:
     t = time.perf_counter()
     img = np.full((240, 320), 128, np.uint8)
     q = tracker.initial_q((110.0, 70.0, 100.0, 100.0))
-    tracker.fit_roi(img.astype(np.float32), q)
+    tracker.fit_roi(img.astype(np.float32), q, person=tracker.model.person is not None)
     return time.perf_counter() - t
 
 

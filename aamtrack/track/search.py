@@ -27,6 +27,8 @@ class Searcher:
         self.width = sm.frontal_width()
         self.n_octaves = 1 + max(octave_for(4096.0, c.face_px, 12) for c in model.couples)
         self.lcn_sigma = float(model.config.get("lcn_sigma", 0.0))
+        if model.person is not None:
+            self.person_basis, _, self.person_lo, self.person_hi = sm.person_view()
 
     def pyramid(self, image: np.ndarray) -> list[np.ndarray]:
         return build_pyramid(to_gray32(image), self.n_octaves, lcn_sigma=self.lcn_sigma)
@@ -43,12 +45,29 @@ class Searcher:
             t = self.model.textures[c.texture]
             o = min(octave_for(q[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
             n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, c.free, self.lo, self.hi, c.U,
-                                t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, max_iter, tol)
+                                c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, max_iter, tol)
             iters.append(int(n_it))
             errs.append(float(np.sqrt(err)))
         verts = sm.project(q, shape_params)
         return FitResult(p=q, landmarks=sm.landmark_map @ verts, vertices=verts,
                          residual=errs[-1] if errs else float("nan"), iterations=tuple(iters), errors=tuple(errs))
+
+    def fit_person(self, pyr: list[np.ndarray], q: np.ndarray, shape_params: np.ndarray | None = None, *,
+                   max_iter: int = MAX_ITER, tol: float = TOL) -> tuple[np.ndarray, np.ndarray, float]:
+        """Search pose, coefficients and the shape units together (the model's person couple), from q and
+        shape_params. Returns (q, shape_params, RMS residual)."""
+        c = self.model.person
+        if c is None:
+            raise ValueError("this model has no person couple (2D models have no shape units)")
+        sm = self.model.shape
+        t = self.model.textures[c.texture]
+        sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
+        q_ext = np.r_[np.asarray(q, float), sigma]
+        o = min(octave_for(q_ext[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
+        _, err = _search(pyr[o], 0.5 ** o, np.ascontiguousarray(sm.mean), self.person_basis, q_ext, c.free,
+                         self.person_lo, self.person_hi, c.U, c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid,
+                         t.frame.pix_bary, max_iter, tol)
+        return q_ext[: sm.n_q], q_ext[sm.n_q:], float(np.sqrt(err))
 
     def residual(self, pyr: list[np.ndarray], q: np.ndarray, shape_params=None, couple: int = -1) -> float:
         """RMS projected residual of q on one couple (default the finest)."""

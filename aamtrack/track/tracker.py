@@ -34,7 +34,10 @@ class TrackerConfig:
     by more than ``max_rescale`` (log) since the previous frame is taken as lost: no head does that in 1/25 s,
     a search that slid onto the background does (the residual alone can miss it on textured backgrounds).
     roi_margin: the search works on a crop of the face's box grown by this share of its size on each side.
-    predict: constant-velocity prediction of the pose (damped by ``predict_damping``)."""
+    predict: constant-velocity prediction of the pose (damped by ``predict_damping``).
+    sigma_frames: 3D models estimate the person's shape units in this many good frames (the median of
+    per-frame estimates by the model's person couple), then hold them (0: keep the training set's mean).
+    One person per video is assumed: sigma is kept through losses and re-detections."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7
@@ -43,6 +46,7 @@ class TrackerConfig:
     roi_margin: float = 0.5
     predict: bool = True
     predict_damping: float = 0.5
+    sigma_frames: int = 15
 
 
 class Tracker:
@@ -62,9 +66,10 @@ class Tracker:
         """0..1 from the finest couple's RMS residual: 1 at the training fits' median, 0 at a displaced fit."""
         return float(np.clip((self.r_bad - residual) / (self.r_bad - self.r_good), 0.0, 1.0))
 
-    def fit_roi(self, gray: np.ndarray, q0: np.ndarray, shape_params=None) -> tuple[FitResult, float]:
+    def fit_roi(self, gray: np.ndarray, q0: np.ndarray, shape_params=None, *,
+                person: bool = False) -> tuple[FitResult, float, np.ndarray | None]:
         """Search on a crop around the face at q0 (exact: the model is translation-equivariant).
-        Returns (result in frame coordinates, pyramid seconds)."""
+        Returns (result in frame coordinates, pyramid seconds, sigma estimate if ``person`` else None)."""
         t0 = time.perf_counter()
         sm = self.model.shape
         v = sm.project(q0, shape_params)
@@ -84,12 +89,13 @@ class Tracker:
                             lcn_sigma=self.searcher.lcn_sigma)
         t_pyr = time.perf_counter() - t0
         res = self.searcher.fit(pyr, q, shape_params)
+        sigma = self.searcher.fit_person(pyr, res.p, shape_params)[1] if person else None
         p = res.p.copy()
         p[4] += x0
         p[5] += y0
         off = np.array([x0, y0], float)
         return FitResult(p=p, landmarks=res.landmarks + off, vertices=res.vertices + off, residual=res.residual,
-                         iterations=res.iterations, errors=res.errors), t_pyr
+                         iterations=res.iterations, errors=res.errors), t_pyr, sigma
 
     def initial_q(self, box, shape_params=None) -> np.ndarray:
         """Rough pose from the detection box (poster: guessed feature points, least squares)."""
@@ -122,6 +128,8 @@ class Tracker:
         q = None          # current parameters, None when there is no track
         q_prev = None     # previous frame's parameters (motion prediction)
         shape_params = None
+        sigma_samples = []
+        estimate = self.model.kind == "3d" and self.model.person is not None and cfg.sigma_frames > 0
         for frame in frames:
             if getattr(frame, "dropped", False):
                 yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped")
@@ -146,7 +154,8 @@ class Tracker:
                     step = cfg.predict_damping * (q - q_prev)
                     start[[2, 4, 5]] += step[[2, 4, 5]]
             t1 = time.perf_counter()
-            res, t_pyr = self.fit_roi(gray, start, shape_params)
+            person = estimate and len(sigma_samples) < cfg.sigma_frames
+            res, t_pyr, sigma = self.fit_roi(gray, start, shape_params, person=person)
             timings["pyramid"] = t_pyr
             timings["search"] = time.perf_counter() - t1 - t_pyr
             conf = self.confidence(res.residual)
@@ -155,6 +164,9 @@ class Tracker:
                 ok = (np.abs(res.p[:3] - q[:3]).max() <= cfg.max_turn
                       and abs(np.log(res.p[3] / q[3])) <= cfg.max_rescale)
             if ok:
+                if sigma is not None:
+                    sigma_samples.append(sigma)
+                    shape_params = np.median(sigma_samples, axis=0)
                 q_prev = q if status == "tracked" else None
                 q = res.p
                 yield self._result(frame, status, res, conf, shape_params, timings)

@@ -23,7 +23,7 @@ from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
 from ..mesh.texture_map import texture_frame
 from .texture import learn_appearance, sample_texture
-from .update import perturbation_steps, update_matrix
+from .update import perturbation_steps, prior_weights, update_matrix
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,11 @@ class TrainConfig:
     ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
     it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
     onto the static background), so it is off by default.
+    prior: Gaussian prior on the coefficients in the search, as the mean squared residual that a coefficient
+    one prior spread from 0 costs (``update.prior_weights``); without it the coefficients of the 2D model
+    ran to their bounds on video, fitting texture with shape. On cap12 (2D model) the mean NME went
+    0.056 -> 0.043 (0.003) -> 0.042 with no frame above 0.10 (0.01); helen_test displaced-start stills
+    0.065 -> 0.064 -> 0.070 (a stronger prior trades some capture range).
     forehead_cut: 3D only, texture triangles whose centre is above this model y (hairline) are left out."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
@@ -51,6 +56,7 @@ class TrainConfig:
     pose_only_couples: int = 2
     lcn_sigma: float = 8.0
     ring: float = 0.0
+    prior: float = 0.01
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
@@ -115,6 +121,27 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
         return sm.triangles
     centre_y = sm.mean[sm.triangles][:, :, 1].mean(1)
     return sm.triangles[centre_y < config.forehead_cut]
+
+
+def _person_couple(images, fits, sm: ShapeModel, textures, config: TrainConfig, n_oct: int, progress) -> Couple:
+    """Update matrix of the finest couple over pose, coefficients and sigma (``ShapeModel.person_view``)."""
+    basis, free, _, _ = sm.person_view()
+    steps = perturbation_steps(sm, person=True)
+    face_px = config.couples[-1][0]
+    t = textures[-1]
+    mean = np.ascontiguousarray(sm.mean)
+    G = np.zeros((t.frame.n_pixels, len(free)))
+    e0 = np.empty(t.frame.n_pixels)
+    width = sm.frontal_width()
+    for i in progress(range(len(images)), desc="person update matrix", unit="img"):
+        pyr = build_pyramid(to_gray32(images[i]), n_oct, lcn_sigma=config.lcn_sigma)
+        o = min(octave_for(fits[i].q[3] * width, face_px, config.n_octaves), len(pyr) - 1)
+        q_ext = np.r_[fits[i].q, fits[i].shape_params]
+        _accumulate_gradient(pyr[o], 0.5 ** o, mean, basis, q_ext, free, steps, t.mean, t.appearance,
+                             t.frame.pix_vid, t.frame.pix_bary, G, e0)
+    U, prior_step = update_matrix(G / len(images), prior := prior_weights(sm, free, t.frame.n_pixels,
+                                                                          config.prior))
+    return Couple(float(face_px), len(textures) - 1, U, free, prior_step, prior)
 
 
 def _residual_levels(images, fits, sm, textures, couples, config, *, n_images: int = 200,
@@ -184,8 +211,11 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     n_pose = int(np.sum(free < N_POSE))
     for k, (cd, G) in enumerate(zip(couple_data, grads)):
         cols = np.arange(n_pose) if k < config.pose_only_couples else np.arange(len(free))
-        couples.append(Couple(float(cd[0]), k, update_matrix(G[:, cols] / len(images)), free[cols].copy()))
+        prior = prior_weights(sm, free[cols], G.shape[0], config.prior)
+        U, prior_step = update_matrix(G[:, cols] / len(images), prior)
+        couples.append(Couple(float(cd[0]), k, U, free[cols].copy(), prior_step, prior))
     couples = tuple(couples)
+    person = _person_couple(images, fits, sm, textures, config, n_oct, progress) if sm.n_shape else None
     t_upd = time.perf_counter() - t0 - t_shape - t_tex
     box_points, n_detected = calibrate_detector(images, points)
     log.info("Haar detector found %d of %d training faces", n_detected, len(images))
@@ -194,5 +224,5 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                "calibration_s": time.perf_counter() - t0 - t_shape - t_tex - t_upd}
     cfg = {**asdict(config), "n_images": len(images), "kind": kind, "residual_good": good, "residual_bad": bad,
            "detector_box_points": box_points.round(5).tolist(), "detector_images": n_detected}
-    model = Model(shape=sm, textures=tuple(textures), couples=couples, config=cfg)
+    model = Model(shape=sm, textures=tuple(textures), couples=couples, config=cfg, person=person)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits]), timings)

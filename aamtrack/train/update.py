@@ -15,13 +15,20 @@ TRANSLATION_STEPS = (0.02, 0.05, 0.10)
 ANGLE_STEPS = (np.radians(3.0), np.radians(7.0), np.radians(15.0))
 LOG_SCALE_STEPS = (0.03, 0.06, 0.10)
 COEF_STEPS = (0.1, 0.25, 0.5)
+SHAPE_STEPS = (0.25, 0.5, 1.0)  # shape units, in prior spreads
 
 
-def perturbation_steps(sm: ShapeModel) -> np.ndarray:
-    """(n_free, 6) float64 signed perturbations of each free parameter."""
+def perturbation_steps(sm: ShapeModel, *, person: bool = False) -> np.ndarray:
+    """(n_free, 6) float64 signed perturbations of each free parameter (with ``person``, of the extended
+    vector [q, sigma] of ``ShapeModel.person_view``)."""
     width = sm.frontal_width()
     rows = []
-    for j in sm.free:
+    free = sm.person_view()[1] if person else sm.free
+    for j in free:
+        if j >= sm.n_q:
+            sd = sm.shape_sd[j - sm.n_q]
+            rows.append([m for t in SHAPE_STEPS for m in (t * sd, -t * sd)])
+            continue
         if j <= 2:
             mags = ANGLE_STEPS
         elif j == 3:
@@ -36,8 +43,33 @@ def perturbation_steps(sm: ShapeModel) -> np.ndarray:
     return np.array(rows, dtype=np.float64)
 
 
-def update_matrix(G: np.ndarray) -> np.ndarray:
-    """U = -(G^T G)^-1 G^T (n_free, N) float32 from G (N, n_free), by a solve."""
+def update_matrix(G: np.ndarray, prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """From G (N, n_free) and the prior weights (n_free,) (0 for the pose), by one solve:
+    U = -(G^T G + diag(prior))^-1 G^T (n_free, N) float32 and prior_step = (G^T G + diag(prior))^-1 diag(prior)
+    (n_free, n_free) float64, so that delta = U e - prior_step p is the Gauss-Newton step of
+    |e|^2 + sum prior p^2 (the paper's U = -(G^T G)^-1 G^T when the prior is 0)."""
+    n = G.shape[1]
+    prior = np.zeros(n) if prior is None else np.asarray(prior, float)
     GtG = G.T @ G
-    ridge = 1e-6 * np.trace(GtG) / len(GtG)
-    return (-np.linalg.solve(GtG + ridge * np.eye(len(GtG)), G.T)).astype(np.float32)
+    ridge = 1e-6 * np.trace(GtG) / n
+    sol = np.linalg.solve(GtG + np.diag(prior) + ridge * np.eye(n), np.hstack([G.T, np.diag(prior)]))
+    return (-sol[:, : G.shape[0]]).astype(np.float32), np.ascontiguousarray(sol[:, G.shape[0]:])
+
+
+def prior_weights(sm: ShapeModel, free: np.ndarray, n_pixels: int, strength: float) -> np.ndarray:
+    """(n_free,) prior weights: ``strength * n_pixels / sd^2`` on each coefficient, 0 on the pose, so a
+    coefficient one prior spread from 0 costs ``strength`` in mean squared residual. Spreads: 1 for 2D PCA
+    coefficients (unit = 1 sd), half the range for animation units, ``shape_sd`` for the shape units."""
+    w = np.zeros(len(free))
+    for a, j in enumerate(free):
+        if j < 6:
+            continue
+        if j >= sm.n_q:
+            sd = sm.shape_sd[j - sm.n_q]
+        elif sm.kind == "2d":
+            sd = 1.0
+        else:
+            k = j - 6
+            sd = 0.5 * (sm.coef_hi[k] - sm.coef_lo[k])
+        w[a] = strength * n_pixels / sd ** 2
+    return w

@@ -86,12 +86,20 @@ def gauss_transform(
 
 @dataclass(frozen=True)
 class GmmConfig:
-    """Options of :func:`register`. scales : kernel widths h, coarse to fine, in units of ``spacing``."""
+    """Options of :func:`register`.
 
-    scales: tuple = (3.0, 1.5, 1.0)
-    anchor: float = 0.02
-    max_iter: int = 60
-    tol: float | None = 1e-10
+    scales : kernel widths h, coarse to fine, in units of ``spacing``. anchor : weight of ``mean |Y - Y0|^2 / h^2``.
+    max_iter : L-BFGS iterations per scale. tol : Gauss transform truncation (None: exact).
+    density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
+    meets a bounded number of others); seed : of that thinning.
+    """
+
+    scales: tuple = (2.0, 1.0)
+    anchor: float = 0.2
+    max_iter: int = 30
+    tol: float | None = 1e-6
+    density: float = 1.5
+    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -134,36 +142,66 @@ def register(
     if n_free == 0 or m == 0 or n == 0:
         x = operator @ y
         return GmmResult(y, x, float("nan"), 0)
+    rng = np.random.default_rng(config.seed)
     y0_free = y[free].copy()
     n_evals = 0
     cost = float("nan")
     for rel in config.scales:
         h = float(rel) * spacing
-        scene_grid = GaussGrid(scene, h, tol=config.tol)
-        s_zz = scene_grid.transform(scene)[0] / (n * n)
-        x_fixed = operator[:, ~free] @ y[~free]
-        grad_self = np.empty((m, 3))
-        grad_cross = np.empty((m, 3))
-        w_anchor = config.anchor / (n_free * h * h)
-
-        def fun(theta: np.ndarray) -> tuple[float, np.ndarray]:
-            nonlocal n_evals
-            n_evals += 1
-            yf = theta.reshape(n_free, 3)
-            x = np.ascontiguousarray(x_fixed + l_free @ yf)
-            s_xx, _ = GaussGrid(x, h, tol=config.tol).transform(x, grad_self)
-            s_xz, _ = scene_grid.transform(x, grad_cross)
-            e = (s_xx / (m * m) - 2.0 * s_xz / (m * n)) / s_zz
-            dx = (2.0 * grad_self / (m * m) - 2.0 * grad_cross / (m * n)) / s_zz
-            d = yf - y0_free
-            e += w_anchor * float((d * d).sum())
-            g = l_free.T @ dx + 2.0 * w_anchor * d
-            return e, g.ravel()
-
-        res = scipy.optimize.minimize(
-            fun, y[free].ravel(), jac=True, method="L-BFGS-B", options={"maxiter": config.max_iter, "gtol": 1e-12}
-        )
-        y[free] = res.x.reshape(n_free, 3)
-        cost = float(res.fun)
-        log.debug("gmm: h=%.4g cost=%.6f iterations=%d", h, cost, res.nit)
+        # thin at coarse scales, keeping enough points to pin the free controls (8 per control)
+        keep = min(1.0, max((config.density / float(rel)) ** 2, 8.0 * n_free / m))
+        rows = np.sort(rng.choice(m, max(1, int(round(keep * m))), replace=False)) if keep < 1 else slice(None)
+        z = scene[np.sort(rng.choice(n, max(1, int(round(keep * n))), replace=False))] if keep < 1 else scene
+        cost, evals = _minimise(operator[rows], y, free, z, h, y0_free, config)
+        n_evals += evals
+        log.debug("gmm: h=%.4g cost=%.6f", h, cost)
     return GmmResult(y, operator @ y, cost, n_evals)
+
+
+def _minimise(operator, y, free, scene, h, y0_free, config):
+    """One scale of :func:`register`; updates ``y[free]`` in place, returns (cost, n_evals)."""
+    m, n, n_free = len(operator), len(scene), int(free.sum())
+    l_free = np.ascontiguousarray(operator[:, free])
+    x_fixed = operator[:, ~free] @ y[~free]
+    scene_grid = GaussGrid(scene, h, tol=config.tol)
+    s_zz = scene_grid.transform(scene)[0] / (n * n)
+    grad_self = np.empty((m, 3))
+    grad_cross = np.empty((m, 3))
+    w_anchor = config.anchor / (n_free * h * h)
+    n_evals = 0
+
+    def fun(theta: np.ndarray) -> tuple[float, np.ndarray]:
+        nonlocal n_evals
+        n_evals += 1
+        yf = theta.reshape(n_free, 3)
+        x = np.ascontiguousarray(x_fixed + l_free @ yf)
+        s_xx, _ = GaussGrid(x, h, tol=config.tol).transform(x, grad_self)
+        s_xz, _ = scene_grid.transform(x, grad_cross)
+        e = (s_xx / (m * m) - 2.0 * s_xz / (m * n)) / s_zz
+        dx = (2.0 * grad_self / (m * m) - 2.0 * grad_cross / (m * n)) / s_zz
+        d = yf - y0_free
+        e += w_anchor * float((d * d).sum())
+        g = l_free.T @ dx + 2.0 * w_anchor * d
+        return e, g.ravel()
+
+    res = scipy.optimize.minimize(
+        fun, y[free].ravel(), jac=True, method="L-BFGS-B", options={"maxiter": config.max_iter, "gtol": 1e-12}
+    )
+    y[free] = res.x.reshape(n_free, 3)
+    return float(res.fun), n_evals
+
+
+def thin(points: np.ndarray, cell: float, rng: np.random.Generator) -> np.ndarray:
+    """Indices (sorted) of at most one point per cube of side ``cell``, chosen at random: an even subsample."""
+    points = np.asarray(points, dtype=np.float64)
+    order = rng.permutation(len(points))
+    keys = np.floor(points[order] / cell).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return np.sort(order[first])
+
+
+def warmup() -> None:
+    """Compile the Gauss transform kernels on tiny inputs (numba caches them on disk)."""
+    pts = np.random.default_rng(0).standard_normal((8, 3))
+    gauss_transform(pts, pts, 1.0, tol=None)
+    gauss_transform(pts, pts, 1.0, tol=1e-6)

@@ -10,7 +10,7 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
 Only the landmarks are assumed to correspond between frames: the scans are point clouds, and the error that
-steers the loop is the mean distance from ``D^t(F^0)`` to the nearest scan point.
+steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the scans.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .gmm import GmmConfig, register
+from .gmm import GmmConfig, register, thin
 from .rbf import rbf_system
 
 log = logging.getLogger(__name__)
@@ -35,15 +35,16 @@ class SamplerConfig:
     n_candidates : candidates drawn per round; max_rounds : upper bound on rounds;
     min_improvement : stop when the error falls by less than this fraction in a round;
     neighbour_radius : radius of a key point's neighbourhood, in units of the mesh spacing;
-    n_moving : at most this many neighbourhood points are registered per frame (a fixed random subset);
+    thin_cell : F^0 and the scans are thinned to one point per cube of this side (in units of the mesh spacing)
+    before registration, which evens out the point density and bounds the cost;
     kernel, smoothing : of the RBF deformation; gmm : registration options; seed : of the sampling.
     """
 
-    n_candidates: int = 400
-    max_rounds: int = 6
+    n_candidates: int = 300
+    max_rounds: int = 5
     min_improvement: float = 0.01
     neighbour_radius: float = 4.0
-    n_moving: int = 4000
+    thin_cell: float = 2.75
     kernel: str = "thin_plate"
     smoothing: float = 0.0
     gmm: GmmConfig = field(default_factory=GmmConfig)
@@ -114,23 +115,39 @@ def _predict(neutral, index, positions, kernel, smoothing, points=None):
     return system.evaluate(pts, coefs).reshape(len(pts), n_frames, 3).transpose(1, 0, 2)
 
 
-def _surface_error(pred: np.ndarray, trees: Sequence) -> float:
-    return float(np.mean([trees[t].query(pred[t])[0].mean() for t in range(1, len(pred))])) if len(pred) > 1 else 0.0
+class _Surface:
+    """A scan as points with normals (PCA of 8 neighbours) for point-to-plane distances."""
+
+    def __init__(self, points: np.ndarray):
+        self.points = np.asarray(points, dtype=np.float64)
+        self.tree = cKDTree(self.points)
+        k = min(8, len(self.points))
+        _, nb = self.tree.query(self.points, k=k)
+        nb = nb.reshape(len(self.points), k)
+        local = self.points[nb] - self.points[nb].mean(1, keepdims=True)
+        _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
+        self.normals = vecs[:, :, 0]
+
+    def distance(self, query: np.ndarray) -> np.ndarray:
+        _, j = self.tree.query(query)
+        return np.abs(((query - self.points[j]) * self.normals[j]).sum(1))
 
 
-def _register_frames(neutral, index, positions, n_fixed, scans, trees, moving, spacing, config, progress):
+def _surface_error(pred: np.ndarray, surfaces: Sequence) -> float:
+    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame)."""
+    if len(pred) < 2:
+        return 0.0
+    return float(np.mean([surfaces[t].distance(pred[t]).mean() for t in range(1, len(pred))]))
+
+
+def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing, config, progress):
     """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
     system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
     operator = system.operator(neutral[moving])
     free = np.arange(len(index)) >= n_fixed
     out = positions.copy()
-    crop = max(config.gmm.scales) * spacing * 3.0
     for t in range(1, len(positions)):
-        x0 = operator @ positions[t]
-        near = trees[t].query_ball_point(x0, crop, return_sorted=False)
-        sel = np.unique(np.concatenate([np.asarray(a, dtype=np.int64) for a in near] + [np.zeros(0, np.int64)]))
-        scene = np.asarray(scans[t], np.float64)[sel]
-        out[t] = register(operator, positions[t], scene, spacing=spacing, free=free, config=config.gmm).controls
+        out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm).controls
         if progress is not None:
             progress(1)
     return out
@@ -143,13 +160,15 @@ def refine_key_points(
     landmark_index: np.ndarray,
     *,
     config: SamplerConfig = SamplerConfig(),
+    motion: np.ndarray | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> KeyPoints:
     """Find key points on F^0 and their positions in every frame so that ``D^t(F^0)`` follows the scans.
 
     neutral : (n_vertices, 3) F^0. scans : n_frames point sets (n_t, 3), scans[0] is F^0 (its order is not used).
     landmarks : (n_frames, n_land, 3) detected landmark positions per frame. landmark_index : (n_land,) their
-    vertices in F^0. progress : called with the number of frames registered (for a progress bar).
+    vertices in F^0. motion : optional (n, n_vertices, 3) motion of F^0 that candidates are selected on (default:
+    ``D^t(F^0) - F^0`` of the current round). progress : called with the number of frames registered.
     """
     neutral = np.ascontiguousarray(neutral, dtype=np.float64)
     landmark_index = np.asarray(landmark_index, dtype=np.int64)
@@ -162,15 +181,17 @@ def refine_key_points(
     index = landmark_index.copy()
     positions = landmarks.copy()
     positions[0] = neutral[index]
-    trees = [cKDTree(np.asarray(s, np.float64)) for s in scans]
+    surfaces = [_Surface(s) for s in scans]
     tree0 = cKDTree(neutral)
-    n_moving = min(config.n_moving, len(neutral))
-    moving_pool = np.sort(rng.choice(len(neutral), n_moving, replace=False))
-    spacing = mesh_spacing(neutral[moving_pool])
-    radius = config.neighbour_radius * mesh_spacing(neutral)
+    base_spacing = mesh_spacing(neutral)
+    cell = config.thin_cell * base_spacing
+    moving_pool = thin(neutral, cell, rng)
+    spacing = mesh_spacing(neutral[moving_pool]) if len(moving_pool) > 1 else cell
+    scenes = [np.asarray(s, np.float64)[thin(s, cell, rng)] for s in scans]
+    radius = config.neighbour_radius * base_spacing
 
     pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
-    error = _surface_error(pred, trees)
+    error = _surface_error(pred, surfaces)
     errors, n_keys = [error], [len(index)]
     log.info("sampler: %d key points, error %.4g", len(index), error)
     for round_ in range(config.max_rounds):
@@ -178,17 +199,18 @@ def refine_key_points(
         if len(pool) == 0:
             break
         cand = rng.choice(pool, min(config.n_candidates, len(pool)), replace=False)
-        kept = select_candidates(pred - neutral, cand, tree0.query_ball_point(neutral[cand], radius))
+        kept = select_candidates(pred - neutral if motion is None else motion, cand,
+                                 tree0.query_ball_point(neutral[cand], radius))
         new_index = np.concatenate([index, kept])
         new_positions = np.concatenate([positions, pred[:, kept]], axis=1)
         # the neighbourhoods of all key points: the moving set of the registration
         near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
         moving = moving_pool[np.isfinite(near)]
         if n_frames > 1 and len(moving):
-            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scans, trees, moving,
-                                             spacing, config, progress)
+            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, moving, spacing,
+                                             config, progress)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
-        new_error = _surface_error(new_pred, trees)
+        new_error = _surface_error(new_pred, surfaces)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,
                  len(new_index), len(kept), len(cand), new_error)
         if new_error >= error:

@@ -2,7 +2,8 @@
 
 An image resolution is defined relative to the face: a couple with ``face_px = F`` runs on the coarsest
 octave o (image downsampled by 2**o with cv2.pyrDown) at which the face is still at least F pixels wide, so
-the same learned update matrix serves faces of any size. Octave 0 is the input image.
+the same learned update matrix serves faces of any size. Octave 0 is the input image. (Choosing the nearest
+octave instead, so faces down to F/sqrt(2), was faster but worse: cap12 2D max NME 0.096 -> 0.11, 6 lost.)
 """
 
 from __future__ import annotations
@@ -28,20 +29,27 @@ def octave_for(face_px: float, couple_face_px: float, n_octaves: int) -> int:
 
 
 def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:
-    """(I - G*I) / sqrt(G*(I - G*I)^2 + eps): local contrast normalisation (lighting invariance)."""
-    d = img - cv2.GaussianBlur(img, (0, 0), sigma)
-    return d / np.sqrt(cv2.GaussianBlur(d * d, (0, 0), sigma) + 25.0)
+    """(I - B*I) / sqrt(B*(I - B*I)^2 + eps): local contrast normalisation (lighting invariance), with B a
+    box filter of the same standard deviation as a Gaussian of ``sigma`` (width sigma * sqrt(12), odd).
+    Box filters cost the same at any width: 23x faster than the Gaussian at sigma 8 on a 480x480 crop,
+    with outputs correlated at 0.9998."""
+    k = max(3, int(round(sigma * math.sqrt(12.0))) | 1)
+    d = img - cv2.blur(img, (k, k))
+    return d / np.sqrt(cv2.blur(d * d, (k, k)) + 25.0)
 
 
-def build_pyramid(gray: np.ndarray, n_octaves: int, *, lcn_sigma: float = 0.0) -> list[np.ndarray]:
+def build_pyramid(gray: np.ndarray, n_octaves: int, *, lcn_sigma: float = 0.0,
+                  used: set | None = None) -> list[np.ndarray]:
     """[octave 0, 1, ...] float32 images; stops early when an octave would be smaller than 8 pixels.
-    With ``lcn_sigma`` > 0 every octave is locally contrast-normalised with that Gaussian (pixels of the
-    octave, hence a fixed share of the face at the octave a couple runs on)."""
+    With ``lcn_sigma`` > 0 the octaves in ``used`` (default all) are locally contrast-normalised (``sigma`` in
+    pixels of the octave, hence a fixed share of the face at the octave a couple runs on); the others are
+    left raw (only their downsampling is needed)."""
     levels = [gray]
     for _ in range(n_octaves - 1):
         if min(levels[-1].shape) < 16:
             break
         levels.append(cv2.pyrDown(levels[-1]))
     if lcn_sigma > 0:
-        levels = [local_contrast(lv, lcn_sigma) for lv in levels]
+        levels = [local_contrast(lv, lcn_sigma) if used is None or o in used else lv
+                  for o, lv in enumerate(levels)]
     return levels

@@ -34,16 +34,18 @@ class Searcher:
         return build_pyramid(to_gray32(image), self.n_octaves, lcn_sigma=self.lcn_sigma)
 
     def fit(self, image_or_pyramid, q0: np.ndarray, shape_params: np.ndarray | None = None, *,
-            max_iter: int = MAX_ITER, tol: float = TOL, couples: slice = slice(None)) -> FitResult:
-        """Search from q0 (n_q,) on an image (H, W[, 3]) or a pyramid from ``pyramid``."""
+            max_iter: int = MAX_ITER, tol: float = TOL, octaves: list[int] | None = None) -> FitResult:
+        """Search from q0 (n_q,) on an image (H, W[, 3]) or a pyramid from ``pyramid``. ``octaves`` fixes
+        the octave of each couple (default: chosen from the face size as each couple starts)."""
         pyr = image_or_pyramid if isinstance(image_or_pyramid, list) else self.pyramid(image_or_pyramid)
         sm = self.model.shape
         shape3d = np.ascontiguousarray(sm.neutral(shape_params))
         q = np.array(q0, dtype=np.float64)
         iters, errs = [], []
-        for c in self.model.couples[couples]:
+        for k, c in enumerate(self.model.couples):
             t = self.model.textures[c.texture]
-            o = min(octave_for(q[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
+            o = octaves[k] if octaves is not None else octave_for(q[3] * self.width, c.face_px, self.n_octaves)
+            o = min(o, len(pyr) - 1)
             n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, c.free, self.lo, self.hi, c.U,
                                 c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, max_iter, tol)
             iters.append(int(n_it))
@@ -53,7 +55,8 @@ class Searcher:
                          residual=errs[-1] if errs else float("nan"), iterations=tuple(iters), errors=tuple(errs))
 
     def fit_person(self, pyr: list[np.ndarray], q: np.ndarray, shape_params: np.ndarray | None = None, *,
-                   max_iter: int = MAX_ITER, tol: float = TOL) -> tuple[np.ndarray, np.ndarray, float]:
+                   max_iter: int = MAX_ITER, tol: float = TOL,
+                   octave: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
         """Search pose, coefficients and the shape units together (the model's person couple), from q and
         shape_params. Returns (q, shape_params, RMS residual)."""
         c = self.model.person
@@ -63,7 +66,8 @@ class Searcher:
         t = self.model.textures[c.texture]
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
         q_ext = np.r_[np.asarray(q, float), sigma]
-        o = min(octave_for(q_ext[3] * self.width, c.face_px, self.n_octaves), len(pyr) - 1)
+        o = octave if octave is not None else octave_for(q_ext[3] * self.width, c.face_px, self.n_octaves)
+        o = min(o, len(pyr) - 1)
         _, err = _search(pyr[o], 0.5 ** o, np.ascontiguousarray(sm.mean), self.person_basis, q_ext, c.free,
                          self.person_lo, self.person_hi, c.U, c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid,
                          t.frame.pix_bary, max_iter, tol)

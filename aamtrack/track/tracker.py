@@ -43,7 +43,7 @@ class TrackerConfig:
     min_inside: float = 0.7
     max_turn: float = 0.35
     max_rescale: float = 0.25
-    roi_margin: float = 0.5
+    roi_margin: float = 0.3
     predict: bool = True
     predict_damping: float = 0.5
     sigma_frames: int = 15
@@ -83,13 +83,14 @@ class Tracker:
         q = np.array(q0, float)
         q[4] -= x0
         q[5] -= y0
-        n_oct = 1 + max(octave_for(q[3] * self.searcher.width, c.face_px, self.searcher.n_octaves)
-                        for c in self.model.couples)
-        pyr = build_pyramid(np.ascontiguousarray(gray[y0:y1, x0:x1], np.float32), n_oct,
-                            lcn_sigma=self.searcher.lcn_sigma)
+        octaves = [octave_for(q[3] * self.searcher.width, c.face_px, self.searcher.n_octaves)
+                   for c in self.model.couples]
+        pyr = build_pyramid(np.ascontiguousarray(gray[y0:y1, x0:x1], np.float32), 1 + max(octaves),
+                            lcn_sigma=self.searcher.lcn_sigma, used=set(octaves))
+        octaves = [min(o, len(pyr) - 1) for o in octaves]
         t_pyr = time.perf_counter() - t0
-        res = self.searcher.fit(pyr, q, shape_params)
-        sigma = self.searcher.fit_person(pyr, res.p, shape_params)[1] if person else None
+        res = self.searcher.fit(pyr, q, shape_params, octaves=octaves)
+        sigma = self.searcher.fit_person(pyr, res.p, shape_params, octave=octaves[-1])[1] if person else None
         p = res.p.copy()
         p[4] += x0
         p[5] += y0

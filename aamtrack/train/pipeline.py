@@ -37,13 +37,15 @@ def _no_progress(iterable, **_):
 @dataclass(frozen=True)
 class TrainConfig:
     """couples: ((face_px, texture_width), ...) coarse to fine; a couple is valid only when its texture is no
-    wider than the face at its image resolution. n_appearance: appearance modes projected out.
+    wider than the face at its image resolution (at least face_px, see ``track.pyramid``). n_appearance: appearance modes projected out.
     pose_only_couples: how many of the coarsest couples search the pose only (shape is left to finer ones).
     lcn_sigma: local contrast normalisation of every pyramid octave (pixels; 0 = off). On helen_test it took
     the displaced-start search from mean NME 0.080 to 0.065 (2D model, 150 training images).
     ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
     it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
     onto the static background), so it is off by default.
+    band, band_below: a texture band outside the mesh (share of its width), below model height -band_below
+    (``mesh.texture_map.texture_frame``); it puts the jaw line inside the texture map.
     prior: Gaussian prior on the coefficients in the search, as the mean squared residual that a coefficient
     one prior spread from 0 costs (``update.prior_weights``); without it the coefficients of the 2D model
     ran to their bounds on video, fitting texture with shape. On cap12 (2D model) the mean NME went
@@ -57,6 +59,8 @@ class TrainConfig:
     lcn_sigma: float = 8.0
     ring: float = 0.0
     prior: float = 0.01
+    band: float = 0.0
+    band_below: float = -0.1
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
@@ -181,7 +185,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     basis = np.ascontiguousarray(sm.basis)
     couple_data = []
     for face_px, tex_w in config.couples:
-        frame = texture_frame(ref2d, tris, tex_w)
+        frame = texture_frame(ref2d, tris, tex_w, band=config.band, band_below=config.band_below)
         couple_data.append([face_px, frame, []])
     pyramids_needed = [octave_for(f.q[3] * width, c[0], config.n_octaves) for f in fits for c in couple_data]
     n_oct = max(pyramids_needed) + 1

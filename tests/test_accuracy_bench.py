@@ -1,0 +1,191 @@
+"""Helpers of benchmarks/accuracy.py and benchmarks/peers.py on hand-made arrays whose answers are worked out in
+the comments, and the aamtrack runner on a synthetic video."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from accuracy import AamRun, jitter_vs_reference, run_aamtrack, summarize_stills, video_scores  # noqa: E402
+from conftest import SEED  # noqa: E402
+
+
+def _face68(eye_gap: float = 10.0) -> np.ndarray:
+    """A (68, 2) shape: random points, with the outer eye corners 36 and 45 exactly ``eye_gap`` px apart."""
+    shape = np.random.default_rng(SEED).uniform(0.0, 50.0, size=(68, 2))
+    shape[36] = (20.0, 30.0)
+    shape[45] = (20.0 + eye_gap, 30.0)
+    return shape
+
+
+# ------------------------------------------------------------------------------------------ summarize_stills
+
+
+def test_stills_summary_counts_undetected_and_rejected_as_failures():
+    # 5 images: 3 fitted (0.02, 0.06, 0.12), 1 found but rejected (NaN), 1 not found (NaN)
+    errors = np.array([0.02, 0.06, 0.12, np.nan, np.nan])
+    found = np.array([True, True, True, True, False])
+    s = summarize_stills(errors, found, thresholds=[0.0, 0.05, 0.10, 0.15])
+    assert s["n_images"] == 5 and s["n_found"] == 4 and s["detection_rate"] == pytest.approx(0.8)
+    assert s["n_fitted"] == 3 and s["n_rejected"] == 1
+    assert s["nme_mean"] == pytest.approx(0.2 / 3)  # (0.02 + 0.06 + 0.12) / 3, fitted images only
+    assert s["nme_median"] == pytest.approx(0.06)
+    assert s["failures"] == 3  # 0.12 > 0.10, the rejected and the undetected one
+    assert s["failure_rate"] == pytest.approx(0.6)
+    # CED over all 5: <= 0: none; <= 0.05: one; <= 0.10: two; <= 0.15: three (the two NaN never count)
+    np.testing.assert_allclose(s["ced"], [0.0, 0.2, 0.4, 0.6])
+
+
+def test_stills_summary_threshold_is_inclusive_and_default_grid():
+    s = summarize_stills([0.10, 0.05], [True, True])
+    assert s["failures"] == 0  # exactly 0.10 is not above 0.10
+    assert len(s["thresholds"]) == 31 and s["thresholds"][0] == 0.0 and s["thresholds"][-1] == pytest.approx(0.15)
+    assert s["ced"][10] == pytest.approx(0.5)  # threshold 0.05 includes the 0.05 image
+    assert s["ced"][-1] == 1.0
+
+
+def test_stills_summary_rejects_inconsistent_input():
+    with pytest.raises(ValueError, match="no detection"):
+        summarize_stills([0.05], [False])  # an error without a detection cannot happen
+    with pytest.raises(ValueError, match="does not match"):
+        summarize_stills([0.05, 0.06], [True])
+
+
+def test_stills_summary_nothing_found():
+    s = summarize_stills([np.nan, np.nan], [False, False], thresholds=[0.1])
+    assert s["detection_rate"] == 0.0 and s["failures"] == 2 and s["ced"] == [0.0]
+    assert math.isnan(s["nme_mean"]) and math.isnan(s["nme_median"])
+
+
+# ---------------------------------------------------------------------------------------- jitter_vs_reference
+
+
+def test_jitter_against_reference_on_the_same_pairs():
+    # 5 frames, 2 points. Reference moves 0.5 px in x every frame; the track 1.0 px in y every frame.
+    n = 5
+    ref = np.zeros((n, 2, 2))
+    ref[:, :, 0] = 0.5 * np.arange(n)[:, None]
+    track = np.zeros((n, 2, 2))
+    track[:, :, 1] = 1.0 * np.arange(n)[:, None]
+    still = np.array([False, True, True, True, True])  # pairs (1,2), (2,3), (3,4)
+    j = jitter_vs_reference(track, ref, still)
+    assert j["jitter_px"] == pytest.approx(1.0)
+    assert j["ref_jitter_px"] == pytest.approx(0.5)
+    assert j["ratio"] == pytest.approx(2.0)
+    assert j["n_pairs"] == 3
+
+
+def test_jitter_leaves_out_pairs_where_the_track_is_lost():
+    # The reference moves 0, 1, 3, 3 px between frames; the track is lost on frame 3, so only the pairs (0,1) and
+    # (1,2) are left for both: the reference's 3-px pairs next to the lost frame must not count.
+    ref = np.zeros((5, 1, 2))
+    ref[:, 0, 0] = [0.0, 0.0, 1.0, 4.0, 7.0]
+    track = np.zeros((5, 1, 2))
+    track[:, 0, 0] = [0.0, 0.0, 2.0, np.nan, 9.0]
+    j = jitter_vs_reference(track, ref, np.ones(5, dtype=bool))
+    # pairs (0,1): track 0, ref 0; (1,2): track 2, ref 1; (2,3) and (3,4): lost -> out
+    assert j["n_pairs"] == 2
+    assert j["jitter_px"] == pytest.approx(1.0)  # (0 + 2) / 2
+    assert j["ref_jitter_px"] == pytest.approx(0.5)  # (0 + 1) / 2
+    assert j["ratio"] == pytest.approx(2.0)
+
+
+def test_jitter_ratio_is_nan_when_the_reference_does_not_move():
+    still_ref = np.zeros((4, 3, 2))
+    track = still_ref + np.arange(4)[:, None, None]
+    j = jitter_vs_reference(track, still_ref, np.ones(4, dtype=bool))
+    assert j["ref_jitter_px"] == 0.0 and math.isnan(j["ratio"])
+    assert j["jitter_px"] == pytest.approx(math.sqrt(2))  # every point moves (1, 1) per frame
+
+
+# ------------------------------------------------------------------------------------------------ video_scores
+
+
+def test_video_scores_against_both_references():
+    # 4 frames of the same face (eye gap 10 px); the track is 1 px off in x on frames 0, 1, 3 and lost on 2.
+    face = _face68(10.0)
+    ref68 = np.stack([face] * 4)
+    pred = ref68 + (1.0, 0.0)
+    pred[2] = np.nan
+    subset = [8, 30, 33, 36, 39, 42, 45, 48, 51, 54, 57]
+    ref_mp = ref68[:, subset] + (0.0, 2.0)  # MediaPipe sits 2 px lower: error sqrt(1 + 4) px / 10 px
+    s = video_scores(pred, ref68, ref_mp, still_mask=np.ones(4, dtype=bool))
+    assert s["n_frames"] == 4 and s["lost"] == 1
+    assert s["dlib"]["nme_mean"] == pytest.approx(0.1) and s["dlib"]["nme_p95"] == pytest.approx(0.1)
+    assert s["mp"]["nme_mean"] == pytest.approx(math.sqrt(5) / 10)
+    assert s["dlib"]["share_failed"] == pytest.approx(0.25)  # the lost frame only: 0.1 is not above 0.10
+    assert s["mp"]["share_failed"] == pytest.approx(1.0)  # lost, or 0.224 > 0.10
+    assert math.isnan(s["dlib"]["nme"][2])
+    # nothing moves: one still pair (0,1) left with the track defined on both frames
+    assert s["dlib"]["jitter"]["jitter_px"] == 0.0 and s["dlib"]["jitter"]["n_pairs"] == 1
+
+
+def test_video_scores_without_references_and_length_check():
+    pred = np.zeros((3, 68, 2))
+    assert video_scores(pred) == {"n_frames": 3, "lost": 0}
+    with pytest.raises(ValueError, match="frames"):
+        video_scores(pred, np.zeros((2, 68, 2)))
+
+
+# ------------------------------------------------------------------------------------- peers.comparison_lines
+
+
+def _row(name, fps, sub_ref, sub_mp, tracking=True):
+    return {"name": name, "fps": fps, "sub_ref_mean": sub_ref, "sub_mp_mean": sub_mp, "tracking": tracking}
+
+
+def test_comparison_line_ratio_and_nme_difference():
+    from peers import comparison_lines
+
+    rows = [
+        _row("dlib detect every frame (up0)", 900.0, 0.005, 0.020, tracking=False),  # fastest, but no tracker
+        _row("dlib tracking (up0)", 400.0, 0.004, 0.025),
+        _row("mediapipe face mesh", 200.0, 0.030, 0.0),
+        _row("aamtrack 3D tracking", 100.0, 0.050, 0.045),
+    ]
+    (line,) = comparison_lines(rows)
+    assert "0.25x the fps" in line and "dlib tracking (up0), 400.0 fps" in line  # 100 / 400
+    # dlib ref: dlib rows are left out, MediaPipe 0.030 -> +0.020; MP ref: MediaPipe left out, best dlib 0.020
+    assert "vs dlib ref 0.0500 (mediapipe face mesh 0.0300, +0.0200)" in line
+    assert "vs MP ref 0.0450 (dlib detect every frame (up0) 0.0200, +0.0250)" in line
+
+
+def test_comparison_line_without_peers():
+    from peers import comparison_lines
+
+    (line,) = comparison_lines([_row("aamtrack 2D tracking", 300.0, 0.03, 0.04)])
+    assert "no peer ran in a tracking mode" in line and "(no other peer)" in line
+
+
+# ------------------------------------------------------------------------------ run_aamtrack on synthetic faces
+
+
+def test_run_aamtrack_video_and_stills(synth_model, tmp_path):
+    import synth
+
+    from aamtrack.model import save_model
+
+    path = tmp_path / "synth.npz"
+    save_model(synth_model, path)
+    frames, truth = synth.moving_face_frames(8)
+    blank = np.full_like(frames[0], 128)  # no face: the detector finds nothing
+
+    video = run_aamtrack(frames, path, still=False)
+    assert isinstance(video, AamRun) and video.name == "aamtrack 2D"
+    assert video.landmarks.shape == (8, 68, 2) and video.times.shape == (8,)
+    assert list(video.status) == ["detected"] + ["tracked"] * 7 and video.detector_runs == 1
+    assert (video.wall_times >= video.times).all()  # the stages are part of the whole step
+    err = np.linalg.norm(video.landmarks - truth, axis=-1).mean()
+    assert err < 1.5  # about a pixel, as in the tracker's own tests
+
+    # Frames 0 and 3 are ones Haar finds on their own (it misses the synthetic face on some frames).
+    stills = run_aamtrack([frames[0], blank, frames[3]], path, still=True)
+    assert list(stills.status) == ["detected", "lost", "detected"]  # each image starts with no track
+    assert stills.detector_runs == 3 and list(stills.found) == [True, False, True]
+    assert np.isnan(stills.landmarks[1]).all()
+    err = np.linalg.norm(stills.landmarks[[0, 2]] - truth[[0, 3]], axis=-1).mean()
+    assert err < 1.0  # from a Haar box alone, within a pixel on the model's own faces

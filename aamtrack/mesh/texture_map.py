@@ -6,7 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from .landmarks import barycentric_map
 
@@ -49,6 +48,8 @@ def texture_frame(ref2d: np.ndarray, triangles: np.ndarray, width: int, *, band:
     W = barycentric_map(grid, pts, triangles)  # extrapolates outside; keep pixels inside (or in the band)
     inside = np.isclose(W.sum(1), 1.0) & (W.min(1) >= -1e-9)
     if band > 0:
+        from scipy.ndimage import distance_transform_edt  # training only: keeps 'aamtrack run' start-up short
+
         dist = distance_transform_edt(~inside.reshape(height, width)).ravel()
         below = (grid[:, 1] - 1.0) / scale + lo[1] - pad > band_below
         inside |= (dist <= band * span * scale) & below

@@ -4,7 +4,6 @@ Delaunay triangulation of the mean. Pose is a similarity (roll, scale, translati
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import Delaunay
 
 from ..mesh.landmarks import similarity_fit
 from ..mesh.shape_model import ShapeModel
@@ -52,6 +51,8 @@ def pca_shape_model(points: np.ndarray, *, variance: float = 0.97, max_modes: in
                     ring: float = 0.0) -> ShapeModel:
     """2D ShapeModel from (n, 68, 2) annotated points (image axes, y down); vertices are the 68 points and
     an outer ring (``ring_operator``; ``ring=0`` for none)."""
+    from scipy.spatial import Delaunay  # here, not at import: 'aamtrack run' starts faster without scipy.spatial
+
     up = np.stack([points[..., 0], -points[..., 1]], axis=-1)
     mean, aligned = procrustes_mean(up)
     X = (aligned - mean).reshape(len(aligned), -1)

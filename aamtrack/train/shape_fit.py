@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..mesh.landmarks import similarity_fit
 from ..mesh.shape_model import N_POSE, ShapeModel
@@ -57,6 +56,8 @@ def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarra
 
     ``shape_params`` is held when ``fit_sigma`` is False (tracking a known person).
     """
+    from scipy.optimize import least_squares  # imported here: the tracker needs only initial_pose
+
     points = np.asarray(points, float)
     fit_sigma = fit_sigma and sm.n_shape > 0
     sigma_fixed = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)

@@ -182,7 +182,7 @@ def _prior_cost(q, free, prior):
 
 @numba.njit(**NJIT)
 def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
-            max_iter, tol, n_steps):
+            max_iter, tol, n_steps, delta_tol):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
     1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does, when the cost
     falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
@@ -191,6 +191,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
     ``(|e|^2 + sum_a prior[a] q[free[a]]^2) / N``; U = -(G^T G + diag(prior))^-1 G^T and
     prior_step = (G^T G + diag(prior))^-1 diag(prior) make delta its Gauss-Newton step (prior is 0 for
     the pose). U (n_free, N) float32, prior_step (n_free, n_free) float64, prior (n_free,) float64.
+    The search also stops, without trying it, when every |delta[a]| is below delta_tol[a] (n_free,).
     Returns (iterations, final cost).
     """
     n = shape3d.shape[0]
@@ -214,6 +215,13 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
             for b in range(free.shape[0]):
                 acc -= prior_step[a, b] * q[free[b]]
             delta[a] = acc
+        small = True
+        for a in range(free.shape[0]):
+            if abs(delta[a]) >= delta_tol[a]:
+                small = False
+                break
+        if small:
+            break
         step = 1.0
         accepted = False
         err_try = err

@@ -13,6 +13,7 @@ from .result import FitResult
 
 MAX_ITER = 30
 TOL = 1e-3
+DELTA_TOL = 0.002  # an update below this (face widths, radians, log-scale; x100 in prior spreads) is convergence
 N_STEPS = 4  # step sizes tried per iteration: 1, 1/2, 1/4, 1/8 (2 was tried: cap12 3D NME 0.048 -> 0.074)
 
 
@@ -28,8 +29,26 @@ class Searcher:
         self.width = sm.frontal_width()
         self.n_octaves = 1 + max(octave_for(4096.0, c.face_px, 12) for c in model.couples)
         self.lcn_sigma = float(model.config.get("lcn_sigma", 0.0))
+        self.delta_tol = {id(c): self._delta_tol(c.free) for c in model.couples + ((model.person,) if model.person
+                                                                                   else ())}
         if model.person is not None:
             self.person_basis, _, self.person_lo, self.person_hi = sm.person_view()
+
+    def _delta_tol(self, free: np.ndarray, tol: float = DELTA_TOL) -> np.ndarray:
+        """(n_free,) update sizes that count as converged: tol radians / log-scale, tol face widths of
+        translation (model units), 5 tol prior spreads of a coefficient."""
+        sm = self.model.shape
+        out = np.empty(len(free))
+        for a, j in enumerate(free):
+            if j <= 3:
+                out[a] = tol
+            elif j <= 5:
+                out[a] = tol * sm.frontal_width()
+            elif j < sm.n_q:
+                out[a] = 5 * tol * (1.0 if sm.kind == "2d" else 0.5 * (sm.coef_hi[j - 6] - sm.coef_lo[j - 6]))
+            else:
+                out[a] = 5 * tol * sm.shape_sd[j - sm.n_q]
+        return out
 
     def pyramid(self, image: np.ndarray) -> list[np.ndarray]:
         return build_pyramid(to_gray32(image), self.n_octaves, lcn_sigma=self.lcn_sigma)
@@ -52,7 +71,7 @@ class Searcher:
             o = min(o, len(pyr) - 1)
             n_it, err = _search(pyr[o], 0.5 ** o, shape3d, self.basis, q, c.free, self.lo, self.hi, c.U,
                                 c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary,
-                                max_iter, tol, n_steps)
+                                max_iter, tol, n_steps, self.delta_tol[id(c)])
             iters.append(int(n_it))
             errs.append(float(np.sqrt(err)))
         verts = sm.project(q, shape_params)
@@ -75,7 +94,7 @@ class Searcher:
         o = min(o, len(pyr) - 1)
         _, err = _search(pyr[o], 0.5 ** o, np.ascontiguousarray(sm.mean), self.person_basis, q_ext, c.free,
                          self.person_lo, self.person_hi, c.U, c.prior_step, c.prior, t.mean, t.appearance, t.frame.pix_vid,
-                         t.frame.pix_bary, max_iter, tol, n_steps)
+                         t.frame.pix_bary, max_iter, tol, n_steps, self.delta_tol[id(c)])
         return q_ext[: sm.n_q], q_ext[sm.n_q:], float(np.sqrt(err))
 
     def residual(self, pyr: list[np.ndarray], q: np.ndarray, shape_params=None, couple: int = -1) -> float:

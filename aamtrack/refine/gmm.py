@@ -5,99 +5,53 @@ the positions ``Y`` of control points (here the key points of an RBF deformation
 
     E(Y) = S(X, X) / m^2 - 2 S(X, Z) / (m n)    with   S(A, B) = sum_ij exp(-|a_i - b_j|^2 / h^2)
 
-(normalised by ``S(Z, Z) / n^2``) is minimised over the free control points with L-BFGS, coarse to fine in ``h``,
-plus ``anchor * mean |Y - Y0|^2 / h^2`` which keeps key points near their prediction where the surface alone cannot
-place them (sliding along a flat patch). Gauss transforms use a grid and skip pairs with ``exp(...) < tol`` (default
-1e-10): approximate to that tolerance per pair, O(n + m) memory.
+(normalised by ``S(Z, Z) / n^2``: :func:`l2_cost`) is what the registration lowers, coarse to fine in ``h``. It
+does so not with a general-purpose optimiser but with a few EM-like steps (see :func:`register`): each moves every
+point by the difference of the Gaussian-weighted means of scene and moving set around it (the gradient of E per
+point divided by the local weight) and fits the controls to that by least squares, plus
+``anchor * mean |Y - Y_prior|^2``, which keeps the controls near a prior where the surface alone cannot place them
+(sliding along a flat patch). Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
+``< exp(-9)``); the moving set's own mean is evaluated once per scale; at most ``max_points`` moving points (a random
+subset) steer the steps at each scale, and coarse scales thin both sets. Memory is O(n + m) throughout.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
-import scipy.optimize
+import scipy.linalg
 
-from .._kernels.gauss import _gauss_transform_direct, _gauss_transform_grid, _grid_build
+from .gauss_grid import GaussGrid, _as_points, gauss_moments, gauss_transform
 
 log = logging.getLogger(__name__)
 
-_MAX_CELLS_PER_AXIS = 1 << 20  # keys stay well inside int64
-
-
-def _as_points(a: np.ndarray, name: str) -> np.ndarray:
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"{name} must be (n, 3), got {a.shape}")
-    if not np.isfinite(a).all():
-        raise ValueError(f"{name} has non-finite values")
-    return a
-
-
-class GaussGrid:
-    """The points ``y`` sorted into a grid for repeated Gauss transforms at one scale.
-
-    y : (m, 3) points; scale : kernel width h; tol : pairs with ``exp(-r^2/h^2) < tol`` are skipped (None: exact).
-    """
-
-    def __init__(self, y: np.ndarray, scale: float, *, tol: float | None = 1e-10):
-        self.y = _as_points(y, "y")
-        if not scale > 0:
-            raise ValueError(f"scale must be > 0, got {scale}")
-        self.inv_h2 = 1.0 / (scale * scale)
-        self.exact = tol is None or len(self.y) == 0
-        if self.exact:
-            return
-        cutoff = scale * np.sqrt(np.log(1.0 / tol))
-        lo = self.y.min(0)
-        dims = np.floor((self.y.max(0) - lo) / cutoff).astype(np.int64) + 1
-        if dims.max() > _MAX_CELLS_PER_AXIS:
-            self.exact = True
-            return
-        self.cell, self.r2_max, self.origin, self.dims = float(cutoff), float(cutoff * cutoff), lo, dims
-        self.order = np.empty(len(self.y), dtype=np.int64)
-        self.keys = np.empty(len(self.y), dtype=np.int64)
-        _grid_build(self.y, self.cell, self.origin, self.dims, self.order, self.keys)
-        self.y_sorted = np.ascontiguousarray(self.y[self.order])
-
-    def transform(self, x: np.ndarray, grad: np.ndarray | None = None) -> tuple[float, np.ndarray]:
-        """``(S, dS/dx)`` for x : (n, 3) float64 contiguous; grad : optional (n, 3) float64 output buffer."""
-        if grad is None:
-            grad = np.empty_like(x)
-        if self.exact:
-            return _gauss_transform_direct(x, self.y, self.inv_h2, grad), grad
-        total = _gauss_transform_grid(
-            x, self.y_sorted, self.keys, self.cell, self.origin, self.dims, self.inv_h2, self.r2_max, grad
-        )
-        return total, grad
-
-
-def gauss_transform(
-    x: np.ndarray, y: np.ndarray, scale: float, *, tol: float | None = 1e-10
-) -> tuple[float, np.ndarray]:
-    """Gauss transform ``S = sum_ij exp(-|x_i - y_j|^2 / scale^2)`` and its gradient ``(n, 3)`` w.r.t. x.
-
-    x : (n, 3), y : (m, 3) points. tol : skip pairs whose term is below tol (None: exact O(n m) sum).
-    """
-    x = _as_points(x, "x")
-    return GaussGrid(y, scale, tol=tol).transform(x)
+__all__ = ["GaussGrid", "GmmConfig", "GmmResult", "gauss_moments", "gauss_transform", "l2_cost", "register",
+           "smooth_basis", "thin", "warmup"]
 
 
 @dataclass(frozen=True)
 class GmmConfig:
     """Options of :func:`register`.
 
-    scales : kernel widths h, coarse to fine, in units of ``spacing``. anchor : weight of ``mean |Y - Y0|^2 / h^2``.
-    max_iter : L-BFGS iterations per scale. tol : Gauss transform truncation (None: exact).
+    scales : kernel widths h, coarse to fine, in units of ``spacing``. anchor : weight of the pull of the free
+    controls back to their start (``mean |Y - Y0|^2`` against the mean squared step of the moving points).
+    max_iter : iterations per scale; step_tol : stop a scale when the moving points move by less than
+    ``step_tol * h`` (root mean square) in an iteration. max_points : the steps are computed on at most this many
+    moving points per scale, a random subset (None: all); the result moves every point. tol : Gauss transform truncation: pairs with ``exp(-r^2/h^2) < tol`` are
+    skipped (the default, ``exp(-9)``, is a cutoff at 3 h: approximate; None: exact O(n m) sums).
     density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
     meets a bounded number of others); seed : of that thinning.
     """
 
     scales: tuple = (2.0, 1.0)
-    anchor: float = 0.2
-    max_iter: int = 30
-    tol: float | None = 1e-6
+    anchor: float = 0.05
+    max_iter: int = 5
+    step_tol: float = 0.02
+    max_points: int | None = 3000
+    tol: float | None = float(np.exp(-9.0))
     density: float = 1.5
     seed: int = 0
 
@@ -105,7 +59,8 @@ class GmmConfig:
 @dataclass(frozen=True)
 class GmmResult:
     """controls : (k, 3) float64 fitted control positions; moved : (m, 3) float64 ``L @ controls``;
-    cost : final normalised L2 cost (about -1 at a perfect fit); n_evals : cost evaluations."""
+    cost : mean squared length of the last step field ``m_Z - m_X`` (see :func:`register`), in squared units of the
+    points: about 0 at a fit (:func:`l2_cost` gives Jian & Vemuri's normalised cost); n_evals : iterations."""
 
     controls: np.ndarray
     moved: np.ndarray
@@ -121,14 +76,27 @@ def register(
     spacing: float,
     free: np.ndarray | None = None,
     config: GmmConfig = GmmConfig(),
+    bases: Sequence | None = None,
+    anchor_to: np.ndarray | None = None,
 ) -> GmmResult:
     """Move the control points so that ``operator @ controls`` matches the scene (Jian & Vemuri's L2 cost).
 
     operator : (m, k) float64 -- moving points as a linear function of the k control positions.
-    controls0 : (k, 3) float64 initial control positions (also the anchor).
+    controls0 : (k, 3) float64 initial control positions (also the anchor unless ``anchor_to`` is given).
     scene : (n, 3) float64 points to register to (a crop of the surface the moving points cover).
     spacing : typical distance between neighbouring points (the unit of ``config.scales``).
     free : (k,) bool -- which controls move (default all); the others stay fixed.
+    bases : optional, one per scale: None or a (n_free, d) float64 matrix B; at that scale the free controls move
+    only by ``B @ theta`` (a smooth field of d coarse nodes: see :func:`smooth_basis`), so that the registration
+    sees whole regions with their curvature features rather than patches that could slide.
+    anchor_to : optional (k, 3) float64 positions the free controls are pulled to (the prior where the surface
+    cannot place them, e.g. sliding along it); default controls0.
+
+    Each iteration is an EM-like (mean-shift) step of the L2 cost: every moving point x_i is sent by
+    ``m_Z(x_i) - m_X(x_i)``, the difference of the Gaussian-weighted means of the scene and of the moving set (itself
+    left out) around it -- the gradient of the L2 cost divided by the local weight, so that shape bias cancels --
+    and the controls take the least-squares step (with the anchor) that best produces it. The normal equations
+    depend only on the operator, so they are factored once per scale.
     """
     operator = np.ascontiguousarray(operator, dtype=np.float64)
     y = _as_points(controls0, "controls0").copy()
@@ -136,59 +104,119 @@ def register(
     free = np.ones(len(y), dtype=bool) if free is None else np.asarray(free, dtype=bool)
     if operator.shape[1] != len(y) or free.shape != (len(y),):
         raise ValueError(f"operator {operator.shape}, controls {y.shape} and free {free.shape} do not match")
+    if bases is not None and len(bases) != len(config.scales):
+        raise ValueError(f"{len(bases)} bases for {len(config.scales)} scales")
     m, n = operator.shape[0], len(scene)
-    l_free = np.ascontiguousarray(operator[:, free])
     n_free = int(free.sum())
     if n_free == 0 or m == 0 or n == 0:
-        x = operator @ y
-        return GmmResult(y, x, float("nan"), 0)
+        return GmmResult(y, operator @ y, float("nan"), 0)
     rng = np.random.default_rng(config.seed)
-    y0_free = y[free].copy()
+    y0_free = (y if anchor_to is None else _as_points(anchor_to, "anchor_to"))[free].copy()
+    if y0_free.shape != (n_free, 3):
+        raise ValueError("anchor_to must be (k, 3) like controls0")
     n_evals = 0
-    cost = float("nan")
-    for rel in config.scales:
+    for level, rel in enumerate(config.scales):
         h = float(rel) * spacing
-        # thin at coarse scales, keeping enough points to pin the free controls (8 per control)
-        keep = min(1.0, max((config.density / float(rel)) ** 2, 8.0 * n_free / m))
-        rows = np.sort(rng.choice(m, max(1, int(round(keep * m))), replace=False)) if keep < 1 else slice(None)
+        # thin at coarse scales, keeping enough points to pin the free controls (8 per degree of freedom)
+        basis = None if bases is None else bases[level]
+        dof = n_free if basis is None else basis.shape[1]
+        keep = min(1.0, max((config.density / float(rel)) ** 2, 8.0 * dof / m))
         z = scene[np.sort(rng.choice(n, max(1, int(round(keep * n))), replace=False))] if keep < 1 else scene
-        cost, evals = _minimise(operator[rows], y, free, z, h, y0_free, config)
-        n_evals += evals
-        log.debug("gmm: h=%.4g cost=%.6f", h, cost)
-    return GmmResult(y, operator @ y, cost, n_evals)
+        if config.max_points is not None:
+            keep = min(keep, max(config.max_points, 8 * dof) / m)
+        rows = rng.choice(m, max(1, int(round(keep * m))), replace=False) if keep < 1 else np.arange(m)
+        rows = rows[_spatial_order(operator[rows] @ y, 3.0 * h)]  # neighbours in turn: kinder to the cache
+        n_iter, residual = _iterate(operator[rows], y, free, z, h, y0_free, basis, config)
+        n_evals += n_iter
+        log.debug("gmm: h=%.4g, %d iterations, residual %.4g", h, n_iter, residual)
+    return GmmResult(y, operator @ y, residual, n_evals)
 
 
-def _minimise(operator, y, free, scene, h, y0_free, config):
-    """One scale of :func:`register`; updates ``y[free]`` in place, returns (cost, n_evals)."""
-    m, n, n_free = len(operator), len(scene), int(free.sum())
+def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, float]:
+    """One scale of :func:`register`; updates ``y[free]`` in place, returns (iterations, last mean squared step)."""
+    m, n_free = len(operator), int(free.sum())
     l_free = np.ascontiguousarray(operator[:, free])
     x_fixed = operator[:, ~free] @ y[~free]
+    l_basis = l_free if basis is None else l_free @ basis
+    w_anchor = config.anchor / n_free
+    eye = np.eye(n_free) if basis is None else basis.T @ basis
+    normal = l_basis.T @ l_basis / m + w_anchor * eye
+    factor = scipy.linalg.cho_factor(normal + 1e-12 * np.trace(normal) * np.eye(len(normal)))
+    yf = y[free]
+    x = np.ascontiguousarray(x_fixed + l_free @ yf)
+    # m_X(x_i) - x_i, the mean of the moving set around x_i (x_i left out: it has weight exactly 1), is a property
+    # of the local shape; it is evaluated once per scale and held fixed while the set deforms a little (approximate)
+    w_x, mean_x = np.empty(m), np.empty((m, 3))
+    GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
+    w_self = np.maximum(w_x - 1.0, 0.0)
+    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
     scene_grid = GaussGrid(scene, h, tol=config.tol)
-    s_zz = scene_grid.transform(scene)[0] / (n * n)
-    grad_self = np.empty((m, 3))
-    grad_cross = np.empty((m, 3))
-    w_anchor = config.anchor / (n_free * h * h)
-    n_evals = 0
+    w_z, mean_z = np.empty(m), np.empty((m, 3))
+    n_iter, residual = 0, float("nan")
+    for n_iter in range(1, config.max_iter + 1):
+        scene_grid.moments(x, w_z, mean_z)
+        # points with little scene around them (holes, occlusions) pull less
+        conf = w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12))
+        step = (mean_z - x - bias) * conf[:, None]
+        residual = float((step * step).sum(1).mean())
+        rhs = l_basis.T @ step / m - w_anchor * (yf - y0_free if basis is None else basis.T @ (yf - y0_free))
+        theta = scipy.linalg.cho_solve(factor, rhs)
+        delta = theta if basis is None else basis @ theta
+        yf = yf + delta
+        moved = l_free @ delta
+        x = np.ascontiguousarray(x + moved)
+        rms = float(np.sqrt((moved * moved).sum(1).mean()))
+        log.debug("gmm: h=%.4g iteration %d: residual %.4g, rms step %.4g", h, n_iter, residual, rms)
+        if rms < config.step_tol * h:
+            break
+    y[free] = yf
+    return n_iter, residual
 
-    def fun(theta: np.ndarray) -> tuple[float, np.ndarray]:
-        nonlocal n_evals
-        n_evals += 1
-        yf = theta.reshape(n_free, 3)
-        x = np.ascontiguousarray(x_fixed + l_free @ yf)
-        s_xx, _ = GaussGrid(x, h, tol=config.tol).transform(x, grad_self)
-        s_xz, _ = scene_grid.transform(x, grad_cross)
-        e = (s_xx / (m * m) - 2.0 * s_xz / (m * n)) / s_zz
-        dx = (2.0 * grad_self / (m * m) - 2.0 * grad_cross / (m * n)) / s_zz
-        d = yf - y0_free
-        e += w_anchor * float((d * d).sum())
-        g = l_free.T @ dx + 2.0 * w_anchor * d
-        return e, g.ravel()
 
-    res = scipy.optimize.minimize(
-        fun, y[free].ravel(), jac=True, method="L-BFGS-B", options={"maxiter": config.max_iter, "gtol": 1e-12}
-    )
-    y[free] = res.x.reshape(n_free, 3)
-    return float(res.fun), n_evals
+def l2_cost(x: np.ndarray, scene: np.ndarray, scale: float, *, tol: float | None = None) -> float:
+    """Normalised L2 distance ``(S(X,X)/m^2 - 2 S(X,Z)/(m n)) / (S(Z,Z)/n^2)`` (-1 when X = Z, Jian & Vemuri)."""
+    x, scene = _as_points(x, "x"), _as_points(scene, "scene")
+    m, n = len(x), len(scene)
+    s_zz = GaussGrid(scene, scale, tol=tol).transform(scene)[0] / (n * n)
+    s_xx = GaussGrid(x, scale, tol=tol).transform(x)[0] / (m * m)
+    s_xz = GaussGrid(scene, scale, tol=tol).transform(x)[0] / (m * n)
+    return float((s_xx - 2.0 * s_xz) / s_zz)
+
+
+def smooth_basis(rest: np.ndarray, free: np.ndarray, n_nodes: int, rng: np.random.Generator) -> np.ndarray | None:
+    """(n_free, d) matrix B: a smooth displacement field of the free controls, zero at the fixed ones.
+
+    rest : (k, 3) control positions in the rest shape; free : (k,) bool. n_nodes : free controls, spread by
+    farthest point sampling from a random start (rng), that carry the field: B is the thin-plate RBF interpolation
+    (:mod:`.rbf`) of the values (0 at the fixed controls, theta at the nodes), d = n_nodes (applied per axis).
+    None when n_nodes covers every free control.
+    """
+    from .rbf import rbf_system
+
+    rest = np.asarray(rest, np.float64)
+    free = np.asarray(free, bool)
+    idx_free = np.flatnonzero(free)
+    if n_nodes >= len(idx_free):
+        return None
+    nodes = _farthest_points(rest[idx_free], n_nodes, rng)
+    centres = np.concatenate([rest[~free], rest[idx_free[nodes]]])
+    op = rbf_system(centres).operator(rest[idx_free])
+    return np.ascontiguousarray(op[:, int((~free).sum()):])
+
+
+def _spatial_order(points: np.ndarray, cell: float) -> np.ndarray:
+    """Permutation that visits the points cell by cell (cubes of side ``cell``)."""
+    k = np.floor((points - points.min(0)) / cell).astype(np.int64)
+    return np.lexsort((k[:, 2], k[:, 1], k[:, 0]))
+
+
+def _farthest_points(points: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    chosen = [int(rng.integers(len(points)))]
+    dist = np.linalg.norm(points - points[chosen[0]], axis=1)
+    for _ in range(1, k):
+        chosen.append(int(np.argmax(dist)))
+        dist = np.minimum(dist, np.linalg.norm(points - points[chosen[-1]], axis=1))
+    return np.array(chosen)
 
 
 def thin(points: np.ndarray, cell: float, rng: np.random.Generator) -> np.ndarray:
@@ -205,3 +233,7 @@ def warmup() -> None:
     pts = np.random.default_rng(0).standard_normal((8, 3))
     gauss_transform(pts, pts, 1.0, tol=None)
     gauss_transform(pts, pts, 1.0, tol=1e-6)
+    gauss_moments(pts, pts, 1.0, tol=None)
+    gauss_moments(pts, pts, 1.0, tol=1e-6)
+    op = np.abs(np.random.default_rng(1).standard_normal((8, 5)))
+    register(op / op.sum(1, keepdims=True), pts[:5], pts, spacing=1.0)

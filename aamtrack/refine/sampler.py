@@ -9,6 +9,15 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
    neighbourhoods in ``D^t(F^0)`` to the scan F^t (the landmarks stay where the detector put them);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
+Step 4 in detail (our choices; the paper names only the registration method): the moving set is all of the
+thinned F^0 (``whole``; else the key points' neighbourhoods), registered coarse to fine, first as a smooth field of
+a few nodes (``nodes``, so that whole regions with their curvature features are matched rather than patches that
+can slide), then key point by key point. A surface cannot say where skin slides along it, so the registration is
+pulled (``gmm.anchor``) to a prior: near the landmarks (within about ``prior_radius`` spacings) the prediction
+``D^t`` from the previous round, which interpolates the landmarks there; far from them (the skull, the neck) only
+the head's rigid motion, estimated per frame by rigid registration of F^0 to the scan, because ``D^t`` merely
+extrapolates there. On the ICT sequences this prior carries most of the gain (see benchmarks/refine.py).
+
 Only the landmarks are assumed to correspond between frames: the scans are point clouds, and the error that
 steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the scans.
 """
@@ -22,7 +31,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .gmm import GmmConfig, register, thin
+from .gauss_grid import GaussGrid
+from .gmm import GmmConfig, register, smooth_basis, thin
 from .rbf import rbf_system
 
 log = logging.getLogger(__name__)
@@ -37,7 +47,10 @@ class SamplerConfig:
     neighbour_radius : radius of a key point's neighbourhood, in units of the mesh spacing;
     thin_cell : F^0 and the scans are thinned to one point per cube of this side (in units of the mesh spacing)
     before registration, which evens out the point density and bounds the cost;
-    kernel, smoothing : of the RBF deformation; gmm : registration options; seed : of the sampling.
+    kernel, smoothing : of the RBF deformation; gmm : registration options (one scale per entry of ``nodes``);
+    nodes : per scale, the number of nodes of the smooth field the free key points move by (0: each moves on its
+    own), None: always on their own; whole : register all of F^0 (else only the key points' neighbourhoods);
+    prior_radius : reach of the prediction in the prior, in units of the (thinned) spacing; seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -47,7 +60,10 @@ class SamplerConfig:
     thin_cell: float = 2.75
     kernel: str = "thin_plate"
     smoothing: float = 0.0
-    gmm: GmmConfig = field(default_factory=GmmConfig)
+    gmm: GmmConfig = field(default_factory=lambda: GmmConfig(scales=(4.0, 2.0, 1.0), anchor=2.0))
+    nodes: tuple | None = (12, 48, 0)
+    whole: bool = True
+    prior_radius: float = 4.0
     seed: int = 0
 
 
@@ -140,17 +156,56 @@ def _surface_error(pred: np.ndarray, surfaces: Sequence) -> float:
     return float(np.mean([surfaces[t].distance(pred[t]).mean() for t in range(1, len(pred))]))
 
 
-def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing, config, progress):
+def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing, config, progress, rng):
     """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
     system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
     operator = system.operator(neutral[moving])
     free = np.arange(len(index)) >= n_fixed
+    bases = None
+    if config.nodes is not None:
+        bases = [smooth_basis(neutral[index], free, k or len(index), rng) for k in config.nodes]
+    # the prior of every free key point: the prediction near the landmarks (where D^t interpolates them), no
+    # motion other than the head's rigid motion far from them (where D^t only extrapolates)
+    rest = neutral[index]
+    near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
     out = positions.copy()
     for t in range(1, len(positions)):
-        out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm).controls
+        rigid = _rigid_motion(neutral[moving], scenes[t], positions[t, :n_fixed], rest[:n_fixed], spacing, config)
+        prior = rigid(rest) + near * (positions[t] - rigid(rest))
+        out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
+                          bases=bases, anchor_to=prior).controls
         if progress is not None:
             progress(1)
     return out
+
+
+def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least-squares rotation R (3, 3) and shift t (3,) with ``dst ~ src @ R.T + t`` (Kabsch)."""
+    w = weight / max(float(weight.sum()), 1e-300)
+    mu_s, mu_d = w @ src, w @ dst
+    u, _, vt = np.linalg.svd(((dst - mu_d) * w[:, None]).T @ (src - mu_s))
+    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
+    rot = u @ d @ vt
+    return rot, mu_d - mu_s @ rot.T
+
+
+def _rigid_motion(points, scene, landmarks, landmarks0, spacing, config, n_iter: int = 5):
+    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3). Starts from the landmarks' best rigid
+    fit, then EM-like steps of the L2 cost at ``2 * spacing`` (the same steps as :func:`.gmm.register`) move all of
+    the (thinned) F^0 as one rigid body; the face's own motion is a small part of the head."""
+    rot, shift = _rigid_fit(landmarks0, landmarks, np.ones(len(landmarks0)))
+    h = 2.0 * spacing
+    grid, self_grid = GaussGrid(scene, h, tol=config.gmm.tol), GaussGrid(points, h, tol=config.gmm.tol)
+    w_x, mean_x = np.empty(len(points)), np.empty((len(points), 3))
+    self_grid.moments(points, w_x, mean_x)
+    w_self = np.maximum(w_x - 1.0, 0.0)
+    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - points) / np.maximum(w_self, 1e-9)[:, None], 0.0)
+    w_z, mean_z = np.empty(len(points)), np.empty((len(points), 3))
+    for _ in range(n_iter):
+        x = np.ascontiguousarray(points @ rot.T + shift)
+        grid.moments(x, w_z, mean_z)
+        rot, shift = _rigid_fit(points, mean_z - bias @ rot.T, w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12)))
+    return lambda p: p @ rot.T + shift
 
 
 def refine_key_points(
@@ -205,10 +260,10 @@ def refine_key_points(
         new_positions = np.concatenate([positions, pred[:, kept]], axis=1)
         # the neighbourhoods of all key points: the moving set of the registration
         near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
-        moving = moving_pool[np.isfinite(near)]
+        moving = moving_pool if config.whole else moving_pool[np.isfinite(near)]
         if n_frames > 1 and len(moving):
             new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, moving, spacing,
-                                             config, progress)
+                                             config, progress, rng)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
         new_error = _surface_error(new_pred, surfaces)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,

@@ -4,7 +4,7 @@ import numpy as np
 from conftest import SEED
 from synthetic import bumpy_surface, smooth_warp
 
-from aamtrack.refine.gmm import GmmConfig, register
+from aamtrack.refine.gmm import GmmConfig, l2_cost, register, smooth_basis
 from aamtrack.refine.rbf import rbf_system
 from aamtrack.refine.sampler import mesh_spacing
 
@@ -16,12 +16,16 @@ def test_recovers_smooth_warp():
     controls = model[rng.choice(len(model), 40, replace=False)]
     operator = rbf_system(controls).operator(model)
     truth = smooth_warp(model, 1.0)
-    config = GmmConfig(scales=(2.0, 1.0), anchor=0.0, max_iter=60)
-    res = register(operator, controls, scene, spacing=mesh_spacing(model), config=config)
+    spacing = mesh_spacing(model)
+    config = GmmConfig(scales=(2.0, 1.0))
+    res = register(operator, controls, scene, spacing=spacing, config=config)
     before = np.linalg.norm(model - truth, axis=1).mean()
     after = np.linalg.norm(res.moved - truth, axis=1).mean()
     assert before > 0.06
-    assert after < 0.25 * before  # most of the warp recovered (in-plane sliding is weakly observable)
+    # most of the warp recovered; the rest is in-plane sliding, weakly observable (seen 0.35x; 60 L-BFGS steps of
+    # the exact L2 cost, the earlier method, reached < 0.25x at ~30x the time)
+    assert after < 0.45 * before
+    assert l2_cost(res.moved, scene, spacing) < -0.9 < l2_cost(model, scene, spacing)  # -1 is a perfect overlap
     assert np.isfinite(res.cost) and res.n_evals > 0
 
 
@@ -33,3 +37,37 @@ def test_fixed_controls_do_not_move():
     free = np.arange(12) >= 6
     res = register(operator, controls, smooth_warp(model, 1.0), spacing=mesh_spacing(model), free=free)
     assert np.array_equal(res.controls[~free], controls[~free])  # exactly fixed
+
+
+def test_smooth_basis_interpolates_nodes_and_vanishes_at_fixed():
+    rng = np.random.default_rng(SEED + 2)
+    rest = bumpy_surface(12)[rng.choice(144, 40, replace=False)]
+    free = np.arange(40) >= 10
+    basis = smooth_basis(rest, free, 8, np.random.default_rng(SEED))
+    assert basis.shape == (30, 8)
+    # a node's column is 1 at that node and 0 at the other nodes (interpolation); constant fields are not in the
+    # span because the field is 0 at the fixed controls
+    at_nodes = basis[np.abs(basis - 1.0).min(1) < 1e-9]
+    assert len(at_nodes) == 8 and np.allclose(np.sort(at_nodes, axis=1)[:, :-1], 0.0, atol=1e-9)
+    assert smooth_basis(rest, free, 30, rng) is None  # as many nodes as free controls: no subspace
+
+
+def test_anchor_to_prior_decides_sliding():
+    # a nearly flat patch moved along its normal: sliding along it is (but for the edges) invisible to the
+    # surface, so where the controls end up in-plane is decided by the prior they are pulled to
+    rng = np.random.default_rng(SEED + 3)
+    u = np.linspace(-1, 1, 20)
+    x, y = (a.ravel() for a in np.meshgrid(u, u))
+    plane = np.stack([x, y, 0.01 * x * y], 1)  # (the RBF's affine part needs some relief)
+    controls = plane[rng.choice(len(plane), 12, replace=False)]
+    operator = rbf_system(controls).operator(plane)
+    scene = plane + [0.0, 0.0, 0.05]
+    config = GmmConfig(anchor=0.05, max_iter=20)
+    plain = register(operator, controls, scene, spacing=mesh_spacing(plane), config=config)
+    slid = register(operator, controls, scene, spacing=mesh_spacing(plane), config=config,
+                    anchor_to=controls + [0.05, 0.0, 0.0])
+    for res in (plain, slid):
+        assert abs(np.mean(res.moved[:, 2] - scene[:, 2])) < 0.01  # the normal offset comes from the surface
+    shift_plain = np.mean(plain.controls[:, 0] - controls[:, 0])
+    shift_slid = np.mean(slid.controls[:, 0] - controls[:, 0])
+    assert abs(shift_plain) < 0.005 and shift_slid > 0.02, (shift_plain, shift_slid)  # in-plane: the prior

@@ -71,6 +71,8 @@ class Tracker:
         self.box_points = np.asarray(cfg["detector_box_points"], float)
         self.r_good = float(cfg["residual_good"])
         self.r_bad = float(cfg["residual_bad"])
+        # the ROI needs to cover only what the texture maps sample (Candide's scalp is not in them)
+        self.roi_vertices = np.unique(np.concatenate([t.frame.pix_vid.ravel() for t in model.textures]))
 
     # -- one image -------------------------------------------------------------------------------------
     def confidence(self, residual: float) -> float:
@@ -83,7 +85,7 @@ class Tracker:
         Returns (result in frame coordinates, pyramid seconds, sigma estimate if ``person`` else None)."""
         t0 = time.perf_counter()
         sm = self.model.shape
-        v = sm.project(q0, shape_params)
+        v = sm.project(q0, shape_params)[self.roi_vertices]
         lo, hi = v.min(0), v.max(0)
         m = self.config.roi_margin * (hi - lo).max()
         H, W = gray.shape

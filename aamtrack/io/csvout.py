@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import math
 import os
 from pathlib import Path
 from typing import Sequence
@@ -57,8 +58,9 @@ def csv_columns(*, anim_names: Sequence[str] = (), shape_names: Sequence[str] = 
 
 
 def _fmt(values, spec: str) -> list[str]:
-    """Format floats with ``spec``; NaN and inf become empty fields."""
-    return [format(v, spec) if np.isfinite(v) else "" for v in np.asarray(values, dtype=np.float64).ravel()]
+    """Format floats with ``spec``; NaN and inf become empty fields. (Python floats and math.isfinite: a
+    per-element numpy check made a 3D row cost 0.6 ms.)"""
+    return [format(v, spec) if math.isfinite(v) else "" for v in np.asarray(values, dtype=np.float64).ravel().tolist()]
 
 
 class TrackingCsvWriter:

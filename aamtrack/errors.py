@@ -11,3 +11,7 @@ class InputError(AamtrackError):
 
 class ModelFileError(AamtrackError):
     """A model file that is missing, corrupt, or of a format version this package cannot read."""
+
+
+class OutputError(AamtrackError):
+    """An output that cannot be written (no video encoder, unwritable folder)."""

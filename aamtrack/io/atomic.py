@@ -126,3 +126,58 @@ def save_npz(path: str | os.PathLike, /, **arrays: np.ndarray) -> None:
     """
     with atomic_write(path, "wb") as f:
         np.savez_compressed(f, **arrays)
+
+
+class TemporaryOutput:
+    """Base of writers that build their file under a temporary name (``self._tmp``) and rename it to
+    ``self.path`` on ``close()``; ``abort()``, an exception leaving a ``with`` block, or garbage collection of
+    an unclosed writer delete the temporary instead, so nothing half-written ever stands at ``path``.
+
+    Subclasses keep the open resource in ``self._handle`` (None once finished) and define ``_release()``
+    (flush and close it) and optionally ``_closed()`` (called after a successful rename).
+    """
+
+    _handle = None
+
+    def _release(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _closed(self) -> None:
+        pass
+
+    def close(self) -> None:
+        """Finish: release the resource and rename the temporary file to ``path``. Idempotent."""
+        if self._handle is None:
+            return
+        try:
+            self._release()
+            commit_temporary(self._tmp, self.path)
+        except BaseException:
+            discard_temporary(self._tmp)
+            raise
+        finally:
+            self._handle = None
+        self._closed()
+
+    def abort(self) -> None:
+        """Give up: delete the temporary file; nothing is written to ``path``. Idempotent."""
+        if self._handle is None:
+            return
+        try:
+            self._release()
+        finally:
+            self._handle = None
+            discard_temporary(self._tmp)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def __del__(self):  # an unclosed writer must not leave its temporary file behind
+        if getattr(self, "_handle", None) is not None:
+            self.abort()

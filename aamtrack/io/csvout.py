@@ -25,7 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from .atomic import commit_temporary, discard_temporary, temporary_path
+from .atomic import TemporaryOutput, temporary_path
 
 __all__ = ["TrackingCsvWriter", "read_tracking_csv", "csv_columns"]
 
@@ -63,7 +63,7 @@ def _fmt(values, spec: str) -> list[str]:
     return [format(v, spec) if math.isfinite(v) else "" for v in np.asarray(values, dtype=np.float64).ravel().tolist()]
 
 
-class TrackingCsvWriter:
+class TrackingCsvWriter(TemporaryOutput):
     """Write :class:`~aamtrack.track.result.FrameResult` rows to a CSV file, atomically.
 
     Rows go to a temporary file next to ``path``; ``close()`` renames it to ``path``. Used as a context manager,
@@ -99,8 +99,8 @@ class TrackingCsvWriter:
                                    n_landmarks=n_landmarks)
         self.n_rows = 0
         self._tmp = temporary_path(self.path)
-        self._file = open(self._tmp, "x", encoding="utf-8", newline="")
-        self._writer = csv.writer(self._file, lineterminator="\n")
+        self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        self._writer = csv.writer(self._handle, lineterminator="\n")
         self._writer.writerow(self.columns)
 
     def _row(self, result) -> list[str]:
@@ -136,45 +136,16 @@ class TrackingCsvWriter:
 
     def write(self, result) -> None:
         """Append the row of one :class:`~aamtrack.track.result.FrameResult`."""
-        if self._file is None:
+        if self._handle is None:
             raise ValueError(f"{self.path}: writer is closed")
         self._writer.writerow(self._row(result))
         self.n_rows += 1
 
-    def close(self) -> None:
-        """Finish: close the temporary file and rename it to ``path``. Idempotent."""
-        if self._file is None:
-            return
-        try:
-            self._file.close()
-            commit_temporary(self._tmp, self.path)
-        except BaseException:
-            discard_temporary(self._tmp)
-            raise
-        finally:
-            self._file = None
+    def _release(self) -> None:
+        self._handle.close()
+
+    def _closed(self) -> None:
         logger.info("%s: %d rows", self.path, self.n_rows)
-
-    def abort(self) -> None:
-        """Give up: delete the temporary file; nothing is written to ``path``. Idempotent."""
-        if self._file is None:
-            return
-        self._file.close()
-        self._file = None
-        discard_temporary(self._tmp)
-
-    def __enter__(self) -> TrackingCsvWriter:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
-
-    def __del__(self):  # an unclosed writer must not leave its temporary file behind
-        if getattr(self, "_file", None) is not None:
-            self.abort()
 
 
 def read_tracking_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:

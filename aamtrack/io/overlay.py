@@ -13,7 +13,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .atomic import commit_temporary, discard_temporary, temporary_path
+from ..errors import OutputError
+from .atomic import TemporaryOutput, discard_temporary, temporary_path
 
 __all__ = ["OverlayWriter", "mesh_edges", "draw_result"]
 
@@ -79,7 +80,7 @@ def draw_result(image: np.ndarray, result, edges: np.ndarray | None = None) -> n
     return image
 
 
-class OverlayWriter:
+class OverlayWriter(TemporaryOutput):
     """Write overlay frames to a video, atomically.
 
     Parameters
@@ -109,19 +110,20 @@ class OverlayWriter:
         path = Path(path)
         attempts = [(path, "mp4v")] if path.suffix.lower() != ".avi" else []
         attempts.append((path.with_suffix(".avi"), "MJPG"))
-        self._writer = None
+        self._handle = None
         for target, fourcc in attempts:
             tmp = temporary_path(target, keep_suffix=True)
             writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps), self.size)
             if writer.isOpened():
                 if target != path:
                     logger.warning("%s: cannot open an mp4v video writer; writing MJPG to %s instead", path, target)
-                self.path, self._tmp, self._writer, self.fourcc = target, tmp, writer, fourcc
+                self.path, self._tmp, self._handle, self.fourcc = target, tmp, writer, fourcc
                 break
             writer.release()
             discard_temporary(tmp)
-        if self._writer is None:
-            raise OSError(f"{path}: OpenCV cannot open a video writer (tried {', '.join(f for _, f in attempts)})")
+        if self._handle is None:
+            raise OutputError(f"{path}: OpenCV cannot open a video writer (tried "
+                              f"{', '.join(f for _, f in attempts)})")
 
     def write(self, image: np.ndarray | None, result) -> None:
         """Draw ``result`` on a copy of ``image`` and append it as the next frame.
@@ -132,7 +134,7 @@ class OverlayWriter:
             The input frame; None (an unreadable frame) writes a black frame, so the frame count stays exact.
         result : FrameResult
         """
-        if self._writer is None:
+        if self._handle is None:
             raise ValueError(f"{self.path}: writer is closed")
         w, h = self.size
         if image is None:
@@ -143,39 +145,11 @@ class OverlayWriter:
                 canvas = cv2.resize(canvas, (w, h), interpolation=cv2.INTER_AREA)
             else:
                 canvas = canvas.copy()
-        self._writer.write(draw_result(canvas, result, self.edges))
+        self._handle.write(draw_result(canvas, result, self.edges))
         self.n_frames += 1
 
-    def close(self) -> None:
-        """Finish the video and rename it to ``self.path``. Idempotent."""
-        if self._writer is None:
-            return
-        self._writer.release()
-        self._writer = None
-        try:
-            commit_temporary(self._tmp, self.path)
-        except BaseException:
-            discard_temporary(self._tmp)
-            raise
+    def _release(self) -> None:
+        self._handle.release()
+
+    def _closed(self) -> None:
         logger.info("%s: %d frames", self.path, self.n_frames)
-
-    def abort(self) -> None:
-        """Give up: delete the temporary video; nothing is written to ``self.path``. Idempotent."""
-        if self._writer is None:
-            return
-        self._writer.release()
-        self._writer = None
-        discard_temporary(self._tmp)
-
-    def __enter__(self) -> OverlayWriter:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
-
-    def __del__(self):  # an unclosed writer must not leave its temporary file behind
-        if getattr(self, "_writer", None) is not None:
-            self.abort()

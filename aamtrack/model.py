@@ -35,7 +35,7 @@ class Texture:
 
 @dataclass(frozen=True)
 class Couple:
-    """One couple: runs at the octave where the face is >= ``face_px`` wide, on texture ``texture``, with
+    """One couple: runs on the image resampled so the face is ``face_px`` wide, on texture ``texture``, with
     update matrix U (n_free, N) float32 (delta = U e) for the parameters ``free`` (n_free,) int64 of q
     (coarse couples may search the pose only); prior_step (n_free, n_free) and prior (n_free,) carry the
     Gaussian prior on the coefficients (see ``aamtrack.train.update.update_matrix``)."""

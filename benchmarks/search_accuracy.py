@@ -47,7 +47,7 @@ def evaluate(model_path: Path, data: Path, *, limit: int | None = None, seed: in
         gt = fit_landmarks(sm, pts)
         face_px = np.ptp(pts[:, 0])
         q0 = displaced_start(gt.q, face_px, rng)
-        pyr = searcher.pyramid(img)
+        pyr = searcher.levels(img)
         t = time.perf_counter()
         res = searcher.fit(pyr, q0, gt.shape_params)
         times.append(time.perf_counter() - t)

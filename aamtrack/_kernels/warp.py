@@ -4,7 +4,7 @@ shape-free texture map, photometric normalisation, residual, parameter update an
 Conventions shared by every kernel (and documented once here):
 
 - ``q`` is the full parameter vector ``[rx, ry, rz, s, tx, ty, c_0 .. c_{k-1}]``: Euler angles (radians,
-  R = Rz @ Ry @ Rx), scale s (pixels per model unit at pyramid octave 0), translation (pixels), deformation
+  R = Rz @ Ry @ Rx), scale s (pixels per model unit in the frame), translation (pixels), deformation
   coefficients c (animation units for the 3D model, PCA coefficients for the 2D model).
 - The model frame has x right, y up, z towards the viewer; the image has y down, so
   ``u = s * (R X)_x + tx`` and ``v = -s * (R X)_y + ty``.
@@ -12,7 +12,8 @@ Conventions shared by every kernel (and documented once here):
   face's own frame, so one learned update matrix serves every position, size and roll of the face: angles
   and coefficients add, the scale multiplies by ``exp(delta)``, and the translation moves by ``delta`` model
   units along the face's (rolled) axes. Training perturbs with the same ``_compose`` the search applies.
-- Pyramid octave o has pixel coordinates ``x / 2**o`` of octave 0 (cv2.pyrDown's sampling grid).
+- An image resampled by a factor ``scale`` is sampled at ``scale * x`` (the caller shifts the translation for
+  cv2.resize's half-pixel convention, see ``aamtrack.track.pyramid``).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def _rotation(rx, ry, rz, R):
 
 @numba.njit(**NJIT)
 def _project(shape3d, basis, q, out):
-    """Vertices in image pixels (octave 0).
+    """Vertices in image pixels (of the frame).
 
     shape3d (n, 3) float64: the person's neutral shape (M + S sigma); basis (k, n, 3) float64;
     q (6 + k,) float64; out (n, 2) float64.
@@ -73,7 +74,8 @@ def _warp(image, verts, scale, pix_vid, pix_bary, out):
     """Piecewise-affine warp with bilinear sampling: texture pixel p takes the image value at
     ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]]``.
 
-    image (H, W) float32; verts (n, 2) float64 octave-0 pixels; scale = 2**-octave; pix_vid (N, 3) int32;
+    image (H, W) float32; verts (n, 2) float64 frame pixels; scale = the image's resampling factor;
+    pix_vid (N, 3) int32;
     pix_bary (N, 3) float32; out (N,) float32. Samples outside the image take the nearest border value.
     Returns the number of texture pixels whose sample fell outside the image.
     """
@@ -184,8 +186,8 @@ def _prior_cost(q, free, prior):
 def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
             max_iter, tol, n_steps, delta_tol):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
-    1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does, when the cost
-    falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
+    1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does,
+    when the cost falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
 
     The cost is the mean squared residual plus a Gaussian prior on the coefficients,
     ``(|e|^2 + sum_a prior[a] q[free[a]]^2) / N``; U = -(G^T G + diag(prior))^-1 G^T and

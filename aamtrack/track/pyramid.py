@@ -1,9 +1,14 @@
-"""Image pyramids and the choice of octave for each couple (image resolution x texture resolution).
+"""Image resolutions for the couples (image resolution x texture resolution), defined relative to the face.
 
-An image resolution is defined relative to the face: a couple with ``face_px = F`` runs on the coarsest
-octave o (image downsampled by 2**o with cv2.pyrDown) at which the face is still at least F pixels wide, so
-the same learned update matrix serves faces of any size. Octave 0 is the input image. (Choosing the nearest
-octave instead, so faces down to F/sqrt(2), was faster but worse: cap12 2D max NME 0.096 -> 0.11, 6 lost.)
+When tracking, a couple with ``face_px = F`` runs on the image resampled (area interpolation) by
+r = min(1, F / face_px), so the face is F pixels wide there whatever its size in the frame (never upsampled: a
+smaller face is used as it is), and the contrast normalisation and texture sampling see every face at the same
+pixel scale. (With dyadic octaves for tracking too, a 240-pixel face and a 120-pixel face ran the finest couple
+at scales 2x apart, and cap12 upscaled to 640x480 lost 5 frames, 40 above NME 0.10; now none.) Training learns
+each couple on dyadic octaves instead (``Octaves``, at the end of this module), which measured better.
+
+``cv2.resize`` maps a source coordinate x to ``r * x + (0.5 * r - 0.5)``; the search folds the constant into the
+translation (``level_offset``) so the kernels keep the plain ``scale * x`` of their convention.
 """
 
 from __future__ import annotations
@@ -21,11 +26,16 @@ def to_gray32(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32)
 
 
-def octave_for(face_px: float, couple_face_px: float, n_octaves: int) -> int:
-    """Coarsest octave at which a face ``face_px`` wide stays at least ``couple_face_px`` wide."""
+def level_factor(face_px: float, couple_face_px: float) -> float:
+    """r = min(1, couple_face_px / face_px): the resampling that makes the face ``couple_face_px`` wide."""
     if not np.isfinite(face_px) or face_px <= couple_face_px:
-        return 0
-    return int(min(max(math.floor(math.log2(face_px / couple_face_px)), 0), n_octaves - 1))
+        return 1.0
+    return float(couple_face_px / face_px)
+
+
+def level_offset(r: float) -> float:
+    """Translation (source pixels) to add to q before a search at factor r: r * (x + d) = r * x + 0.5 r - 0.5."""
+    return 0.5 - 0.5 / r
 
 
 def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:
@@ -38,18 +48,60 @@ def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:
     return d / np.sqrt(cv2.blur(d * d, (k, k)) + 25.0)
 
 
-def build_pyramid(gray: np.ndarray, n_octaves: int, *, lcn_sigma: float = 0.0,
-                  used: set | None = None) -> list[np.ndarray]:
-    """[octave 0, 1, ...] float32 images; stops early when an octave would be smaller than 8 pixels.
-    With ``lcn_sigma`` > 0 the octaves in ``used`` (default all) are locally contrast-normalised (``sigma`` in
-    pixels of the octave, hence a fixed share of the face at the octave a couple runs on); the others are
-    left raw (only their downsampling is needed)."""
-    levels = [gray]
-    for _ in range(n_octaves - 1):
-        if min(levels[-1].shape) < 16:
-            break
-        levels.append(cv2.pyrDown(levels[-1]))
-    if lcn_sigma > 0:
-        levels = [local_contrast(lv, lcn_sigma) if used is None or o in used else lv
-                  for o, lv in enumerate(levels)]
-    return levels
+class Levels:
+    """The images one frame (or crop) offers the couples: ``get(r)`` resamples by r and contrast-normalises
+    (``lcn_sigma`` pixels of the resampled image; 0 for none), once per factor."""
+
+    def __init__(self, gray: np.ndarray, lcn_sigma: float = 0.0):
+        self.gray = np.ascontiguousarray(gray, dtype=np.float32)
+        self.lcn_sigma = float(lcn_sigma)
+        self._cache: dict[float, np.ndarray] = {}
+
+    def get(self, r: float) -> np.ndarray:
+        img = self._cache.get(r)
+        if img is None:
+            img = self.gray
+            if r < 1.0:
+                img = cv2.resize(img, None, fx=r, fy=r, interpolation=cv2.INTER_AREA)
+                if min(img.shape) < 2:
+                    img = np.zeros((2, 2), np.float32)
+            if self.lcn_sigma > 0:
+                img = local_contrast(img, self.lcn_sigma)
+            img = np.ascontiguousarray(img, dtype=np.float32)
+            self._cache[r] = img
+        return img
+
+
+# Training's resolutions. Models learn each couple on the coarsest dyadic octave (cv2.pyrDown) at which the face
+# is still at least F pixels wide -- on helen's ~200-pixel faces, about 2F for the finest couple -- and track at
+# exactly F (``level_factor``). Learning at F too was measured worse: cap12 mean NME 0.047 -> 0.049 (max 0.085 ->
+# 0.17) at 400x300, 0.048 -> 0.060 at 640x480; so was learning at ~1.5 F with couples (48, 96, 192).
+
+
+def octave_for(face_px: float, couple_face_px: float, n_octaves: int = 8) -> int:
+    """Coarsest octave at which a face ``face_px`` wide stays at least ``couple_face_px`` wide."""
+    if not np.isfinite(face_px) or face_px <= couple_face_px:
+        return 0
+    return int(min(max(math.floor(math.log2(face_px / couple_face_px)), 0), n_octaves - 1))
+
+
+class Octaves(Levels):
+    """Training's images: ``get(r)`` for r = 2**-o is octave o (cv2.pyrDown o times, no half-pixel offset),
+    contrast-normalised. ``octave_factor`` gives r."""
+
+    def get(self, r: float) -> np.ndarray:
+        img = self._cache.get(r)
+        if img is None:
+            img = self.gray
+            for _ in range(int(round(-math.log2(r)))):
+                img = cv2.pyrDown(img)
+            if self.lcn_sigma > 0:
+                img = local_contrast(img, self.lcn_sigma)
+            img = np.ascontiguousarray(img, dtype=np.float32)
+            self._cache[r] = img
+        return img
+
+
+def octave_factor(face_px: float, couple_face_px: float) -> float:
+    """The resampling factor 2**-o of training's octave for a couple."""
+    return 0.5 ** octave_for(face_px, couple_face_px)

@@ -18,7 +18,7 @@ import numpy as np
 from ..mesh.shape_model import N_POSE
 from ..model import Model
 from .detector import HaarDetector, guess_points
-from .pyramid import build_pyramid, octave_for, to_gray32
+from .pyramid import Levels, to_gray32
 from .result import FitResult, FrameResult
 from .search import Searcher
 from ..train.shape_fit import initial_pose
@@ -96,15 +96,14 @@ class Tracker:
         q = np.array(q0, float)
         q[4] -= x0
         q[5] -= y0
-        octaves = [octave_for(q[3] * self.searcher.width, c.face_px, self.searcher.n_octaves)
-                   if k >= first else 0 for k, c in enumerate(self.model.couples)]
-        pyr = build_pyramid(np.ascontiguousarray(gray[y0:y1, x0:x1], np.float32), 1 + max(octaves),
-                            lcn_sigma=self.searcher.lcn_sigma, used=set(octaves))
-        octaves = [min(o, len(pyr) - 1) for o in octaves]
+        factors = self.searcher.factors(q)
+        levels = Levels(gray[y0:y1, x0:x1], self.searcher.lcn_sigma)
+        for r in factors[first:]:  # build them now, so that their time is measured apart from the search
+            levels.get(r)
         t_pyr = time.perf_counter() - t0
-        res = self.searcher.fit(pyr, q, shape_params, octaves=octaves, first=first)
+        res = self.searcher.fit(levels, q, shape_params, factors=factors, first=first)
         # each frame an independent estimate from the mean person (sigma 0); the caller takes their median
-        sigma = self.searcher.fit_person(pyr, res.p, None, octave=octaves[-1])[1] if person else None
+        sigma = self.searcher.fit_person(levels, res.p, None, factor=factors[-1])[1] if person else None
         p = res.p.copy()
         p[4] += x0
         p[5] += y0
@@ -189,7 +188,8 @@ class Tracker:
             if status == "detected":
                 res, t_pyr = self.fit_detection(gray, box, shape_params)
                 if person:  # the person search on the chosen fit
-                    _, _, sigma = self.fit_roi(gray, res.p, shape_params, person=True, first=len(self.model.couples) - 1)
+                    last = len(self.model.couples) - 1
+                    _, _, sigma = self.fit_roi(gray, res.p, shape_params, person=True, first=last)
                 else:
                     sigma = None
             else:

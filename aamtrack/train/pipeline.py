@@ -17,7 +17,7 @@ from ..mesh.candide_model import candide_shape_model
 from ..mesh.landmarks import N_CANDIDE_SKIN_TRIANGLES, candide_landmark_map, refine_landmark_map
 from ..mesh.shape_model import N_POSE, ShapeModel
 from ..model import Couple, Model, Texture
-from ..track.pyramid import build_pyramid, octave_for, to_gray32
+from ..track.pyramid import Octaves, octave_factor, to_gray32
 from ..track.detector import calibrate_detector
 from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
@@ -37,9 +37,10 @@ def _no_progress(iterable, **_):
 @dataclass(frozen=True)
 class TrainConfig:
     """couples: ((face_px, texture_width), ...) coarse to fine; a couple is valid only when its texture is no
-    wider than the face at its image resolution (at least face_px, see ``track.pyramid``). n_appearance: appearance modes projected out.
+    wider than the face at its image resolution (face_px, see ``track.pyramid``).
+    n_appearance: appearance modes projected out.
     pose_only_couples: how many of the coarsest couples search the pose only (shape is left to finer ones).
-    lcn_sigma: local contrast normalisation of every pyramid octave (pixels; 0 = off). On helen_test it took
+    lcn_sigma: local contrast normalisation of each couple's image (pixels; 0 = off). On helen_test it took
     the displaced-start search from mean NME 0.080 to 0.065 (2D model, 150 training images).
     ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
     it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
@@ -64,7 +65,6 @@ class TrainConfig:
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
-    n_octaves: int = 6
 
     def __post_init__(self):
         for face_px, tex in self.couples:
@@ -127,7 +127,7 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
     return sm.triangles[centre_y < config.forehead_cut]
 
 
-def _person_couple(images, fits, sm: ShapeModel, textures, config: TrainConfig, n_oct: int, progress) -> Couple:
+def _person_couple(images, fits, sm: ShapeModel, textures, config: TrainConfig, progress) -> Couple:
     """Update matrix of the finest couple over pose, coefficients and sigma (``ShapeModel.person_view``)."""
     basis, free, _, _ = sm.person_view()
     steps = perturbation_steps(sm, person=True)
@@ -138,11 +138,10 @@ def _person_couple(images, fits, sm: ShapeModel, textures, config: TrainConfig, 
     e0 = np.empty(t.frame.n_pixels)
     width = sm.frontal_width()
     for i in progress(range(len(images)), desc="person update matrix", unit="img"):
-        pyr = build_pyramid(to_gray32(images[i]), n_oct, lcn_sigma=config.lcn_sigma)
-        o = min(octave_for(fits[i].q[3] * width, face_px, config.n_octaves), len(pyr) - 1)
+        r = octave_factor(fits[i].q[3] * width, face_px)
         q_ext = np.r_[fits[i].q, fits[i].shape_params]
-        _accumulate_gradient(pyr[o], 0.5 ** o, mean, basis, q_ext, free, steps, t.mean, t.appearance,
-                             t.frame.pix_vid, t.frame.pix_bary, G, e0)
+        _accumulate_gradient(Octaves(to_gray32(images[i]), config.lcn_sigma).get(r), r, mean, basis, q_ext, free,
+                             steps, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, G, e0)
     U, prior_step = update_matrix(G / len(images), prior := prior_weights(sm, free, t.frame.n_pixels,
                                                                           config.prior))
     return Couple(float(face_px), len(textures) - 1, U, free, prior_step, prior)
@@ -159,13 +158,13 @@ def _residual_levels(images, fits, sm, textures, couples, config, *, n_images: i
     rng = np.random.default_rng(1)
     good, bad = [], []
     for i in rng.permutation(len(images))[:n_images]:
-        pyr = searcher.pyramid(images[i])
+        lv = searcher.levels(images[i])
         q = fits[i].q
-        good.append(searcher.residual(pyr, q, fits[i].shape_params))
+        good.append(searcher.residual(lv, q, fits[i].shape_params))
         qb = q.copy()
         ang = rng.uniform(0, 2 * np.pi)
         qb[4:6] += shift * q[3] * sm.frontal_width() * np.array([np.cos(ang), np.sin(ang)])
-        bad.append(searcher.residual(pyr, qb, fits[i].shape_params))
+        bad.append(searcher.residual(lv, qb, fits[i].shape_params))
     return float(np.median(good)), float(np.median(bad))
 
 
@@ -187,19 +186,19 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     for face_px, tex_w in config.couples:
         frame = texture_frame(ref2d, tris, tex_w, band=config.band, band_below=config.band_below)
         couple_data.append([face_px, frame, []])
-    pyramids_needed = [octave_for(f.q[3] * width, c[0], config.n_octaves) for f in fits for c in couple_data]
-    n_oct = max(pyramids_needed) + 1
     neutral = [np.ascontiguousarray(sm.neutral(f.shape_params)) for f in fits]
 
-    def octave_images(i):
-        pyr = build_pyramid(to_gray32(images[i]), n_oct, lcn_sigma=config.lcn_sigma)
+    def couple_images(i):
+        """(image at the couple's training octave, its factor, texture frame, q) per couple (see
+        ``track.pyramid``: training learns at the octave, tracking runs at exactly face_px)."""
+        lv = Octaves(to_gray32(images[i]), config.lcn_sigma)
         for face_px, frame, _ in couple_data:
-            o = min(octave_for(fits[i].q[3] * width, face_px, config.n_octaves), len(pyr) - 1)
-            yield pyr[o], 0.5 ** o, frame
+            r = octave_factor(fits[i].q[3] * width, face_px)
+            yield lv.get(r), r, frame, fits[i].q
 
     for i in progress(range(len(images)), desc="textures", unit="img"):
-        for (img, sc, frame), cd in zip(octave_images(i), couple_data):
-            cd[2].append(sample_texture(img, sc, neutral[i], basis, fits[i].q, frame))
+        for (img, r, frame, q), cd in zip(couple_images(i), couple_data):
+            cd[2].append(sample_texture(img, r, neutral[i], basis, q, frame))
     textures = []
     for face_px, frame, tex in couple_data:
         mean, app = learn_appearance(np.array(tex), n_modes=config.n_appearance)
@@ -207,9 +206,9 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     t_tex = time.perf_counter() - t0 - t_shape
     grads = [np.zeros((t.frame.n_pixels, len(free))) for t in textures]
     for i in progress(range(len(images)), desc="update matrices", unit="img"):
-        for (img, sc, frame), t, G in zip(octave_images(i), textures, grads):
+        for (img, r, frame, q), t, G in zip(couple_images(i), textures, grads):
             e0 = np.empty(frame.n_pixels)
-            _accumulate_gradient(img, sc, neutral[i], basis, fits[i].q, free, steps, t.mean, t.appearance,
+            _accumulate_gradient(img, r, neutral[i], basis, q, free, steps, t.mean, t.appearance,
                                  frame.pix_vid, frame.pix_bary, G, e0)
     couples = []
     n_pose = int(np.sum(free < N_POSE))
@@ -219,7 +218,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         U, prior_step = update_matrix(G[:, cols] / len(images), prior)
         couples.append(Couple(float(cd[0]), k, U, free[cols].copy(), prior_step, prior))
     couples = tuple(couples)
-    person = _person_couple(images, fits, sm, textures, config, n_oct, progress) if sm.n_shape else None
+    person = _person_couple(images, fits, sm, textures, config, progress) if sm.n_shape else None
     t_upd = time.perf_counter() - t0 - t_shape - t_tex
     box_points, n_detected = calibrate_detector(images, points)
     log.info("Haar detector found %d of %d training faces", n_detected, len(images))

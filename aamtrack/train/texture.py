@@ -15,13 +15,13 @@ from .._kernels.warp import _normalize, _project, _warp
 from ..mesh.texture_map import TextureFrame
 
 
-def sample_texture(image: np.ndarray, octave_scale: float, shape3d: np.ndarray, basis: np.ndarray,
+def sample_texture(image: np.ndarray, scale: float, shape3d: np.ndarray, basis: np.ndarray,
                    q: np.ndarray, frame: TextureFrame) -> np.ndarray:
     """(N,) float32 normalised texture of ``image`` (H, W) float32 under parameters q."""
     verts = np.empty((len(shape3d), 2))
     _project(shape3d, basis, q, verts)
     tex = np.empty(frame.n_pixels, dtype=np.float32)
-    _warp(image, verts, octave_scale, frame.pix_vid, frame.pix_bary, tex)
+    _warp(image, verts, scale, frame.pix_vid, frame.pix_bary, tex)
     _normalize(tex)
     return tex
 

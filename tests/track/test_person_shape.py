@@ -56,7 +56,7 @@ def test_person_search_moves_towards_the_true_shape(model3d):
     for img, pts in zip(images, points):
         truth = fit_landmarks(sm, pts)  # the model's own best description of the face
         q = truth.q
-        pyr = searcher.pyramid(img)
+        pyr = searcher.levels(img)
         before = np.linalg.norm(sm.landmarks(q) - pts, axis=1).mean()
         q_est, sigma_est, _ = searcher.fit_person(pyr, q)
         after = np.linalg.norm(sm.landmarks(q_est, sigma_est) - pts, axis=1).mean()

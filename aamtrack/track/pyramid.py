@@ -56,15 +56,32 @@ class Levels:
         self.gray = np.ascontiguousarray(gray, dtype=np.float32)
         self.lcn_sigma = float(lcn_sigma)
         self._cache: dict[float, np.ndarray] = {}
+        self._raw: dict[float, np.ndarray] = {1.0: self.gray}
+
+    def _resampled(self, r: float) -> np.ndarray:
+        """The image resampled by r, from the nearest finer one already made (r/r' of a smaller image; the
+        half-pixel mappings compose exactly: r/r' (r' x + r'/2 - 1/2 + 1/2) - 1/2 = r x + r/2 - 1/2)."""
+        img = self._raw.get(r)
+        if img is None:
+            src = min((f for f in self._raw if f >= r), default=1.0)
+            while r / src < 0.5 and min(self._raw[src].shape) >= 4:  # exact halvings first: INTER_AREA's fast path
+                half = self._raw.get(src / 2)
+                if half is None:
+                    half = self._raw[src / 2] = cv2.resize(self._raw[src], None, fx=0.5, fy=0.5,
+                                                           interpolation=cv2.INTER_AREA)
+                src /= 2
+            k = r / src
+            img = self._raw[src] if k == 1.0 else cv2.resize(self._raw[src], None, fx=k, fy=k,
+                                                             interpolation=cv2.INTER_AREA)
+            if min(img.shape) < 2:
+                img = np.zeros((2, 2), np.float32)
+            self._raw[r] = img
+        return img
 
     def get(self, r: float) -> np.ndarray:
         img = self._cache.get(r)
         if img is None:
-            img = self.gray
-            if r < 1.0:
-                img = cv2.resize(img, None, fx=r, fy=r, interpolation=cv2.INTER_AREA)
-                if min(img.shape) < 2:
-                    img = np.zeros((2, 2), np.float32)
+            img = self._resampled(min(r, 1.0))
             if self.lcn_sigma > 0:
                 img = local_contrast(img, self.lcn_sigma)
             img = np.ascontiguousarray(img, dtype=np.float32)

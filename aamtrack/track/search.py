@@ -23,7 +23,6 @@ class Searcher:
     def __init__(self, model: Model):
         self.model = model
         sm = model.shape
-        self.free = sm.free
         self.lo, self.hi = sm.bounds()
         self.basis = np.ascontiguousarray(sm.basis)
         self.width = sm.frontal_width()

@@ -79,7 +79,7 @@ class Tracker:
         """0..1 from the finest couple's RMS residual: 1 at the training fits' median, 0 at a displaced fit."""
         return float(np.clip((self.r_bad - residual) / (self.r_bad - self.r_good), 0.0, 1.0))
 
-    def fit_roi(self, gray: np.ndarray, q0: np.ndarray, shape_params=None, *, person: bool = False,
+    def fit_roi(self, image: np.ndarray, q0: np.ndarray, shape_params=None, *, person: bool = False,
                 first: int = 0) -> tuple[FitResult, float, np.ndarray | None]:
         """Search on a crop around the face at q0 (exact: the model is translation-equivariant).
         Returns (result in frame coordinates, pyramid seconds, sigma estimate if ``person`` else None)."""
@@ -88,7 +88,7 @@ class Tracker:
         v = sm.project(q0, shape_params)[self.roi_vertices]
         lo, hi = v.min(0), v.max(0)
         m = self.config.roi_margin * (hi - lo).max()
-        H, W = gray.shape
+        H, W = image.shape[:2]
         x0, y0 = int(max(0, np.floor(lo[0] - m))), int(max(0, np.floor(lo[1] - m)))
         x1, y1 = int(min(W, np.ceil(hi[0] + m))), int(min(H, np.ceil(hi[1] + m)))
         if x1 - x0 < 8 or y1 - y0 < 8:
@@ -97,8 +97,8 @@ class Tracker:
         q[4] -= x0
         q[5] -= y0
         factors = self.searcher.factors(q)
-        levels = Levels(gray[y0:y1, x0:x1], self.searcher.lcn_sigma)
-        for r in factors[first:]:  # build them now, so that their time is measured apart from the search
+        levels = Levels(to_gray32(image[y0:y1, x0:x1]), self.searcher.lcn_sigma)  # grey of the crop only
+        for r in sorted(factors[first:], reverse=True):  # now (timed apart from the search), fine to coarse
             levels.get(r)
         t_pyr = time.perf_counter() - t0
         res = self.searcher.fit(levels, q, shape_params, factors=factors, first=first)
@@ -111,7 +111,7 @@ class Tracker:
         return FitResult(p=p, landmarks=res.landmarks + off, vertices=res.vertices + off, residual=res.residual,
                          iterations=res.iterations, errors=res.errors), t_pyr, sigma
 
-    def fit_detection(self, gray: np.ndarray, box, shape_params=None) -> tuple[FitResult, float]:
+    def fit_detection(self, image: np.ndarray, box, shape_params=None) -> tuple[FitResult, float]:
         """The best of the searches from the configured starts around the box's rough pose.
         Returns (result, pyramid seconds summed over the starts)."""
         q0 = self.initial_q(box, shape_params)
@@ -121,7 +121,7 @@ class Tracker:
             q[3] *= scale
             q[5] += shift * q0[3] * self.searcher.width
             q[2] += roll
-            res, t, _ = self.fit_roi(gray, q, shape_params)
+            res, t, _ = self.fit_roi(image, q, shape_params)
             t_pyr += t
             if best is None or res.residual < best.residual:
                 best = res
@@ -170,9 +170,9 @@ class Tracker:
                 continue
             timings = {}
             t0 = time.perf_counter()
-            gray = to_gray32(frame.image)
+            image = frame.image
             if q is None:
-                box = self.detector.detect(frame.image if frame.image.ndim == 2 else gray)
+                box = self.detector.detect(image)
                 timings["detect"] = time.perf_counter() - t0
                 if box is None:
                     yield self._result(frame, "lost", None, 0.0, shape_params, timings)
@@ -186,18 +186,18 @@ class Tracker:
             t1 = time.perf_counter()
             person = estimate and len(sigma_samples) < cfg.sigma_frames
             if status == "detected":
-                res, t_pyr = self.fit_detection(gray, box, shape_params)
+                res, t_pyr = self.fit_detection(image, box, shape_params)
                 if person:  # the person search on the chosen fit
                     last = len(self.model.couples) - 1
-                    _, _, sigma = self.fit_roi(gray, res.p, shape_params, person=True, first=last)
+                    _, _, sigma = self.fit_roi(image, res.p, shape_params, person=True, first=last)
                 else:
                     sigma = None
             else:
-                res, t_pyr, sigma = self.fit_roi(gray, start, shape_params, person=person, first=cfg.skip_coarse)
+                res, t_pyr, sigma = self.fit_roi(image, start, shape_params, person=person, first=cfg.skip_coarse)
             timings["pyramid"] = t_pyr
             timings["search"] = time.perf_counter() - t1 - t_pyr
             conf = self.confidence(res.residual)
-            ok = conf >= cfg.min_confidence and self._inside(res.landmarks, gray.shape) >= cfg.min_inside
+            ok = conf >= cfg.min_confidence and self._inside(res.landmarks, image.shape[:2]) >= cfg.min_inside
             if ok and status == "tracked":
                 ok = (np.abs(res.p[:3] - q[:3]).max() <= cfg.max_turn
                       and abs(np.log(res.p[3] / q[3])) <= cfg.max_rescale)

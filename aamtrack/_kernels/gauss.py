@@ -7,7 +7,8 @@ Exact kernels (``*_direct``, O(n*m) time) and grid kernels (pairs farther than a
 through a uniform grid over ``y`` whose occupied cells are kept as a sorted list of keys, so memory stays O(n + m)
 however large the bounding box; where the grid has few cells, a table of each cell's first point replaces the
 binary search). Besides the transform and its gradient, the kernels give per-point moments (weight and weighted
-mean of the y near each x) for EM-like registration steps. Public wrappers live in ``aamtrack.refine.gauss_grid``.
+mean of the y near each x) for EM-like registration steps; the grid's transform and gradient are derived from its
+moments in the wrapper (one grid traversal kernel). Public wrappers live in ``aamtrack.refine.gauss_grid``.
 """
 
 from __future__ import annotations
@@ -102,52 +103,6 @@ def _first_at(keys, table, value):
     if table.shape[0] > 0:
         return table[value]
     return _lower_bound(keys, value)
-
-
-@numba.njit(**NJIT)
-def _gauss_transform_grid(x, y_sorted, keys, table, cell, origin, dims, inv_h2, r2_max, grad):
-    """Gauss transform over pairs closer than ``sqrt(r2_max)`` (the cutoff must not exceed ``cell``).
-
-    y_sorted : (m, 3) float64, y ordered as ``keys`` (see ``_grid_build``). grad : (n, 3) float64, overwritten with
-    d S / d x_i. Returns S.
-    """
-    n = x.shape[0]
-    total = 0.0
-    c = -2.0 * inv_h2
-    for i in range(n):
-        xi0 = x[i, 0]
-        xi1 = x[i, 1]
-        xi2 = x[i, 2]
-        cx = int(np.floor((xi0 - origin[0]) / cell))
-        cy = int(np.floor((xi1 - origin[1]) / cell))
-        cz = int(np.floor((xi2 - origin[2]) / cell))
-        gx = 0.0
-        gy = 0.0
-        gz = 0.0
-        z_lo = max(cz - 1, 0)
-        z_hi = min(cz + 1, dims[2] - 1)
-        if z_lo <= z_hi:
-            for ix in range(max(cx - 1, 0), min(cx + 2, dims[0])):
-                for iy in range(max(cy - 1, 0), min(cy + 2, dims[1])):
-                    base = (ix * dims[1] + iy) * dims[2]
-                    # cells (ix, iy, z_lo..z_hi) have consecutive keys: one contiguous run of y_sorted
-                    start = _first_at(keys, table, base + z_lo)
-                    stop = _first_at(keys, table, base + z_hi + 1)
-                    for j in range(start, stop):
-                        d0 = xi0 - y_sorted[j, 0]
-                        d1 = xi1 - y_sorted[j, 1]
-                        d2 = xi2 - y_sorted[j, 2]
-                        r2 = d0 * d0 + d1 * d1 + d2 * d2
-                        if r2 < r2_max:
-                            w = np.exp(-r2 * inv_h2)
-                            total += w
-                            gx += w * d0
-                            gy += w * d1
-                            gz += w * d2
-        grad[i, 0] = c * gx
-        grad[i, 1] = c * gy
-        grad[i, 2] = c * gz
-    return total
 
 
 @numba.njit(**NJIT)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._kernels.gauss import _gauss_moments_direct, _gauss_moments_grid
-from .._kernels.gauss import _gauss_transform_direct, _gauss_transform_grid, _grid_build, _grid_table
+from .._kernels.gauss import _gauss_transform_direct, _grid_build, _grid_table
 
 _MAX_CELLS_PER_AXIS = 1 << 20  # keys stay well inside int64
 _TABLE_CELLS_PER_POINT = 16  # a cell table (O(cells) memory) only where it stays O(points)
@@ -65,9 +65,11 @@ class GaussGrid:
             grad = np.empty_like(x)
         if self.exact:
             return _gauss_transform_direct(x, self.y, self.inv_h2, grad), grad
-        total = _gauss_transform_grid(
-            x, self.y_sorted, self.keys, self.table, self.cell, self.origin, self.dims, self.inv_h2, self.r2_max, grad
-        )
+        # from the moments: dS/dx_i = -2/h^2 sum_j w_ij (x_i - y_j) = -2/h^2 weight_i (x_i - mean_i)
+        weight = np.empty(len(x))
+        mean = np.empty_like(x)
+        total = self.moments(x, weight, mean)
+        np.multiply((-2.0 * self.inv_h2) * weight[:, None], x - mean, out=grad)
         return total, grad
 
     def moments(self, x: np.ndarray, weight: np.ndarray, mean: np.ndarray) -> float:

@@ -251,6 +251,7 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
     from aamtrack.model import load_model
     from aamtrack.track.benchmark import warmup
     from aamtrack.track.replay import ReplayFrame
+    from aamtrack.track.timing import timed
     from aamtrack.track.tracker import Tracker
 
     t0 = time.perf_counter()
@@ -265,13 +266,7 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
     landmarks, times, walls, found, status = [], [], [], [], []
     detector_runs = 0
     for results in runs:
-        while True:
-            t = time.perf_counter()
-            try:
-                res = next(results)
-            except StopIteration:
-                break
-            walls.append(time.perf_counter() - t)
+        for res in timed(results, walls):
             times.append(sum(res.timings.get(k, 0.0) for k in TIMED_STAGES))
             found.append("search" in res.timings)
             detector_runs += "detect" in res.timings

@@ -9,7 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from ..errors import InputError
@@ -21,6 +20,7 @@ from ..io.summary import write_summary_json
 from ..model import load_model
 from ..models import default_model_path
 from ..track.replay import realtime
+from ..track.timing import ms_stats, timed
 from ..track.tracker import Tracker
 
 log = logging.getLogger(__name__)
@@ -68,19 +68,7 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
     t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
-    frames_iter = iter(source)
-
-    def timed_frames():
-        while True:
-            t = time.perf_counter()
-            try:
-                f = next(frames_iter)
-            except StopIteration:
-                return
-            t_decode.append(time.perf_counter() - t)
-            yield f
-
-    frames = realtime(timed_frames(), source.fps) if replay else timed_frames()
+    frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
     t_first = None
     with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
                                    shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
@@ -116,10 +104,6 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
         raise InputError(f"{input_}: no frames")
     wall = time.perf_counter() - t_start
 
-    def ms(values):
-        return {"median": 1e3 * float(np.median(values)), "p90": 1e3 * float(np.percentile(values, 90)),
-                "max": 1e3 * float(np.max(values))} if values else None
-
     track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
     summary = {
         "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
@@ -127,8 +111,8 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
         "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
         "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
         "realtime": replay, "video_fps": source.fps,
-        "timing_ms": {"decode": ms(t_decode), **{k: ms(v) for k, v in per_frame.items()},
-                      "track": ms(track_times)},
+        "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
+                      "track": ms_stats(track_times)},
         "start_to_first_result_s": (t_first - t_start) if t_first else None,
         "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},

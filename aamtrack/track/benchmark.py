@@ -8,6 +8,7 @@ asked for one thread and numba kernels are serial.
 
 from __future__ import annotations
 
+import itertools
 import tempfile
 import time
 from pathlib import Path
@@ -18,14 +19,8 @@ import numpy as np
 from ..io.csvout import TrackingCsvWriter
 from ..io.frames import open_frames
 from ..model import load_model
+from .timing import ms_stats, timed
 from .tracker import Tracker
-
-
-def _stats(values) -> dict | None:
-    if not values:
-        return None
-    v = 1e3 * np.asarray(values)
-    return {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(v.max()), "n": len(v)}
 
 
 def warmup(tracker: Tracker) -> float:
@@ -42,17 +37,9 @@ def bench_one(input_, model_path: Path, size: tuple[int, int], *, max_frames: in
     model = load_model(model_path)
     tracker = Tracker(model)
     t_warm = warmup(tracker)
-    frames, t_dec = [], []
+    t_dec = []
     with open_frames(input_, resize=size) as src:
-        it = iter(src)
-        while len(frames) < max_frames:
-            t = time.perf_counter()
-            try:
-                f = next(it)
-            except StopIteration:
-                break
-            t_dec.append(time.perf_counter() - t)
-            frames.append(f)
+        frames = list(itertools.islice(timed(src, t_dec), max_frames))
     sm = model.shape
     stages = {"detect": [], "pyramid": [], "search": [], "output": []}
     track_only, n_ok = [], 0
@@ -77,7 +64,7 @@ def bench_one(input_, model_path: Path, size: tuple[int, int], *, max_frames: in
     return {
         "model": str(model_path), "kind": sm.kind, "size": f"{size[0]}x{size[1]}", "frames": n,
         "frames_tracked": int(n_ok), "warmup_s": t_warm,
-        "ms": {"decode": _stats(t_dec), **{k: _stats(v) for k, v in stages.items()}, "track": _stats(track_only)},
+        "ms": {"decode": ms_stats(t_dec), **{k: ms_stats(v) for k, v in stages.items()}, "track": ms_stats(track_only)},
         "fps_tracking": 1.0 / track_med if track_only else float("nan"),
         "fps_end_to_end": n / (sum(t_dec) + t_track_total) if n else float("nan"),
     }

@@ -104,18 +104,12 @@ def octave_for(face_px: float, couple_face_px: float, n_octaves: int = 8) -> int
 
 class Octaves(Levels):
     """Training's images: ``get(r)`` for r = 2**-o is octave o (cv2.pyrDown o times, no half-pixel offset),
-    contrast-normalised. ``octave_factor`` gives r."""
+    contrast-normalised as in ``Levels``. ``octave_factor`` gives r."""
 
-    def get(self, r: float) -> np.ndarray:
-        img = self._cache.get(r)
+    def _resampled(self, r: float) -> np.ndarray:
+        img = self._raw.get(r)
         if img is None:
-            img = self.gray
-            for _ in range(int(round(-math.log2(r)))):
-                img = cv2.pyrDown(img)
-            if self.lcn_sigma > 0:
-                img = local_contrast(img, self.lcn_sigma)
-            img = np.ascontiguousarray(img, dtype=np.float32)
-            self._cache[r] = img
+            img = self._raw[r] = cv2.pyrDown(self._resampled(2.0 * r))  # octave o from octave o - 1
         return img
 
 

@@ -28,7 +28,6 @@ def evaluate(model: Path, video: Path, ref: Path) -> dict:
         summary = track_file(str(video), model_path=model, out_dir=Path(tmp), progress=False)
         cols = read_tracking_csv(summary["outputs"]["csv"])
     pred = np.stack([np.column_stack([cols[f"x_{i}"], cols[f"y_{i}"]]) for i in range(68)], axis=1)
-    pred = np.transpose(pred, (0, 1, 2))
     reference = np.load(ref)["landmarks"].astype(float)
     err = nme(pred, reference)
     ok = cols["success"] == 1

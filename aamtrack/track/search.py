@@ -13,7 +13,7 @@ from .result import FitResult
 
 MAX_ITER = 30
 TOL = 1e-3
-DELTA_TOL = 0.002  # an update below this (face widths, radians, log-scale; x100 in prior spreads) is convergence
+DELTA_TOL = 0.002  # an update below this (face widths, radians, log-scale; x5 in prior spreads) is convergence
 N_STEPS = 4  # step sizes tried per iteration: 1, 1/2, 1/4, 1/8 (2 was tried: cap12 3D NME 0.048 -> 0.074)
 
 

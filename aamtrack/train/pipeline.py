@@ -45,8 +45,6 @@ class TrainConfig:
     ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
     it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
     onto the static background), so it is off by default.
-    band, band_below: a texture band outside the mesh (share of its width), below model height -band_below
-    (``mesh.texture_map.texture_frame``); it puts the jaw line inside the texture map.
     prior: Gaussian prior on the coefficients in the search, as the mean squared residual that a coefficient
     one prior spread from 0 costs (``update.prior_weights``); without it the coefficients of the 2D model
     ran to their bounds on video, fitting texture with shape. On cap12 (2D model) the mean NME went
@@ -60,8 +58,6 @@ class TrainConfig:
     lcn_sigma: float = 8.0
     ring: float = 0.0
     prior: float = 0.01
-    band: float = 0.0
-    band_below: float = -0.1
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
@@ -184,7 +180,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     basis = np.ascontiguousarray(sm.basis)
     couple_data = []
     for face_px, tex_w in config.couples:
-        frame = texture_frame(ref2d, tris, tex_w, band=config.band, band_below=config.band_below)
+        frame = texture_frame(ref2d, tris, tex_w)
         couple_data.append([face_px, frame, []])
     neutral = [np.ascontiguousarray(sm.neutral(f.shape_params)) for f in fits]
 

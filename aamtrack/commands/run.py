@@ -4,7 +4,9 @@ per frame), a JSON summary and optionally an overlay video and per-frame .pts fi
 from __future__ import annotations
 
 import argparse
+import glob
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -13,7 +15,8 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import open_frames
+from ..io.atomic import OutputSet
+from ..io.frames import display_name, open_frames
 from ..io.overlay import OverlayWriter
 from ..io.pts import write_pts_per_frame
 from ..io.summary import write_summary_json
@@ -42,84 +45,108 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def output_base(input_: str) -> tuple[Path, str]:
+    """(folder the input lives in, name for its outputs): a file's stem, a folder's name, and for a glob
+    pattern the name of the folder its matches are in (``'shots/*.png'`` -> ``shots``). A name that exists is
+    never read as a pattern, so ``my video [1].mp4`` is a file."""
+    src = Path(input_)
+    if not os.path.lexists(input_) and glob.has_magic(input_):
+        src = next((p for p in src.parents if not glob.has_magic(str(p))), Path("."))
+        src = src.resolve() if src == Path(".") else src
+        return src.parent, src.name or "frames"
+    if src.is_dir():
+        src = src.resolve() if src.name in ("", ".", "..") else src
+        return src.parent, src.name or "frames"
+    return src.parent, src.stem or src.name
+
+
 def output_dir(input_: str, out_dir: Path | None) -> Path:
     if out_dir is not None:
         return out_dir
-    src = Path(input_)
-    if any(ch in input_ for ch in "*?["):
-        src = Path(input_).parent
-    return src.parent / f"{src.stem or src.name}_aamtrack"
+    parent, stem = output_base(input_)
+    return parent / f"{stem}_aamtrack"
 
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
                replay: bool = False, fps: float | None = None, progress: bool = True) -> dict:
-    """Track one input and write its outputs; returns the summary. Inputs are checked before anything is
-    written; every output appears complete or not at all."""
+    """Track one input and write its outputs; returns the summary. Inputs and the output folder are checked
+    before the work; every output is written under a temporary name and all are committed together at the
+    end, so a failed or interrupted run leaves nothing (and an existing output untouched)."""
     t_start = time.perf_counter()
     source = open_frames(input_, fps=fps)
-    model = load_model(model_path)
-    tracker = Tracker(model)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = Path(source.name).stem if Path(source.name).suffix else Path(source.name).name
-    csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
-    sm = model.shape
-    is3d = sm.kind == "3d"
-    counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
-    t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
-    frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
-    t_first = None
-    with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
-                                   shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
-        ov = OverlayWriter(out_dir / f"{stem}_overlay.mp4", source.fps, (source.width, source.height),
-                           triangles=sm.triangles) if overlay else None
-        try:
-            bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
-                       desc=stem)
-            images = {}
-            for res in tracker.track(_remember(frames, images) if ov else frames):
-                t_first = t_first or time.perf_counter()
-                t = time.perf_counter()
-                csv_w.write(res)
+    with source, OutputSet(out_dir) as outputs:
+        model = load_model(model_path)
+        tracker = Tracker(model)
+        outputs.prepare()
+        stem = output_base(input_)[1]
+        names = {"csv": f"{stem}.csv", "summary": f"{stem}.json", "video": f"{stem}_overlay.mp4",
+                 "pts": f"{stem}_pts"}
+        csv_tmp, json_tmp = outputs.file(names["csv"]), outputs.file(names["summary"])
+        pts_tmp = outputs.folder_output(names["pts"]) if pts else None
+        sm = model.shape
+        is3d = sm.kind == "3d"
+        counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
+        t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
+        frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
+        t_first = None
+        with TrackingCsvWriter(csv_tmp, anim_names=sm.coef_names if is3d else (),
+                               shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
+            ov_tmp = outputs.file(names["video"]) if overlay else None
+            ov = OverlayWriter(ov_tmp, source.fps, (source.width, source.height),
+                               triangles=sm.triangles) if overlay else None
+            try:
+                bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
+                           desc=display_name(stem))
+                images = {}
+                for res in tracker.track(_remember(frames, images) if ov else frames):
+                    t_first = t_first or time.perf_counter()
+                    t = time.perf_counter()
+                    csv_w.write(res)
+                    if ov is not None:
+                        ov.write(images.pop(res.frame, None), res)
+                    if pts_tmp is not None and res.success:
+                        write_pts_per_frame(pts_tmp, res)
+                    per_frame["output"].append(time.perf_counter() - t)
+                    for k in ("detect", "pyramid", "search"):
+                        if k in res.timings:
+                            per_frame[k].append(res.timings[k])
+                    counts["read"] += 1
+                    counts[res.status] += 1
+                    bar.update(1)
+                bar.close()
+            except BaseException:
                 if ov is not None:
-                    ov.write(images.pop(res.frame, None), res)
-                if pts and res.success:
-                    write_pts_per_frame(out_dir / f"{stem}_pts", res)
-                per_frame["output"].append(time.perf_counter() - t)
-                for k in ("detect", "pyramid", "search"):
-                    if k in res.timings:
-                        per_frame[k].append(res.timings[k])
-                counts["read"] += 1
-                counts[res.status] += 1
-                bar.update(1)
-            bar.close()
-        except BaseException:
+                    ov.abort()
+                raise
             if ov is not None:
-                ov.abort()
-            raise
-        if ov is not None:
-            ov.close()
-    if counts["read"] == 0:
-        raise InputError(f"{input_}: no frames")
-    wall = time.perf_counter() - t_start
+                ov.close()
+                if ov.path != ov_tmp:  # no mp4v encoder: the writer fell back to MJPG .avi
+                    names["video"] = str(Path(names["video"]).with_suffix(ov.path.suffix))
+                    outputs.retarget(ov_tmp, ov.path, out_dir / names["video"])
+        if counts["read"] == 0:
+            raise InputError(f"{input_}: no frames")
+        wall = time.perf_counter() - t_start
 
-    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
-    summary = {
-        "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
-        "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
-        "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
-        "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
-        "realtime": replay, "video_fps": source.fps,
-        "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
-                      "track": ms_stats(track_times)},
-        "start_to_first_result_s": (t_first - t_start) if t_first else None,
-        "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
-        "outputs": {"csv": str(csv_path), "summary": str(json_path)},
-    }
-    if ov is not None:
-        summary["outputs"]["video"] = str(ov.path)
-    write_summary_json(json_path, summary)
+        track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
+        summary = {
+            "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
+            "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
+            "frames_lost": counts["lost"], "frames_dropped": counts["dropped"],
+            "frames_unreadable": counts["unreadable"],
+            "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
+            "realtime": replay, "video_fps": source.fps,
+            "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
+                          "track": ms_stats(track_times)},
+            "start_to_first_result_s": (t_first - t_start) if t_first else None,
+            "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
+            "outputs": {k: str(out_dir / names[k]) for k in ("csv", "summary")},
+        }
+        if ov is not None:
+            summary["outputs"]["video"] = str(out_dir / names["video"])
+        if pts:
+            summary["outputs"]["pts"] = str(out_dir / names["pts"])
+        write_summary_json(json_tmp, summary)
+        outputs.commit()
     return summary
 
 
@@ -135,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
                    overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps)
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
-          f"{s['fps_end_to_end']:.0f} fps end to end -> {s['outputs']['csv']}")
+          f"{s['fps_end_to_end']:.0f} fps end to end -> {display_name(s['outputs']['csv'])}")
     if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {args.input}", file=sys.stderr)
+        print(f"aamtrack run: warning: no face found in any frame of {display_name(args.input)}", file=sys.stderr)
     return 0

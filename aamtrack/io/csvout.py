@@ -25,7 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from .atomic import TemporaryOutput, temporary_path
+from .atomic import TemporaryOutput, output_error, temporary_path
 
 __all__ = ["TrackingCsvWriter", "read_tracking_csv", "csv_columns"]
 
@@ -99,9 +99,12 @@ class TrackingCsvWriter(TemporaryOutput):
                                    n_landmarks=n_landmarks)
         self.n_rows = 0
         self._tmp = temporary_path(self.path)
-        self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        try:
+            self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        except OSError as exc:
+            raise output_error(self.path, exc) from None
         self._writer = csv.writer(self._handle, lineterminator="\n")
-        self._writer.writerow(self.columns)
+        self._write_row(self.columns)
 
     def _row(self, result) -> list[str]:
         status = str(result.status)
@@ -138,8 +141,15 @@ class TrackingCsvWriter(TemporaryOutput):
         """Append the row of one :class:`~aamtrack.track.result.FrameResult`."""
         if self._handle is None:
             raise ValueError(f"{self.path}: writer is closed")
-        self._writer.writerow(self._row(result))
+        self._write_row(self._row(result))
         self.n_rows += 1
+
+    def _write_row(self, row: list[str]) -> None:
+        try:
+            self._writer.writerow(row)
+        except OSError as exc:  # disk full, I/O error: nothing half-written stays behind
+            self.abort()
+            raise output_error(self.path, exc) from None
 
     def _release(self) -> None:
         self._handle.close()

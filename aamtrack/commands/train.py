@@ -12,8 +12,9 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import InputError
-from ..io.atomic import atomic_write
+from ..io.atomic import OutputSet, atomic_write
 from ..io.dataset import find_pairs, load_pair
+from ..io.frames import display_name
 from ..mesh.candide import read_wfm
 from ..model import save_model
 from ..models import default_candide_path
@@ -39,20 +40,29 @@ def _parse_couples(text: str | None) -> tuple:
         return TrainConfig().couples
     try:
         couples = tuple(tuple(int(v) for v in item.split(":")) for item in text.split(","))
-        if any(len(c) != 2 or c[1] > c[0] or c[1] < 4 for c in couples):
+        if any(len(c) != 2 or c[1] > c[0] or c[1] < 4 or c[0] > 4096 for c in couples):
             raise ValueError
     except ValueError:
-        raise InputError(f"--couples {text!r}: expected FACE_PX:TEX_WIDTH pairs with 4 <= TEX_WIDTH <= FACE_PX")
+        raise InputError(f"--couples {text!r}: expected FACE_PX:TEX_WIDTH pairs with "
+                         "4 <= TEX_WIDTH <= FACE_PX <= 4096") from None
     return couples
 
 
 def run(args: argparse.Namespace) -> int:
     out = args.out or Path("models") / f"{args.kind}.npz"
-    if out.exists() and out.is_dir():
-        raise InputError(f"{out}: is a folder, expected a model file name")
-    if not out.parent.exists():
-        raise InputError(f"{out.parent}: output folder does not exist")
+    if out.is_dir():
+        raise InputError(f"{display_name(out)}: is a folder, expected a model file name")
     config = TrainConfig(couples=_parse_couples(args.couples))
+    # Output checks before the work: the model and the report are committed together at the end.
+    outputs = OutputSet(out.parent)
+    for path in (out, args.report) if args.report else (out,):
+        if not path.parent.is_dir():
+            raise InputError(f"{display_name(path.parent)}: output folder does not exist")
+        OutputSet(path.parent).prepare()  # writable?
+    if args.report and args.report.resolve() == out.resolve():
+        raise InputError("--report and --out name the same file")
+    model_tmp = outputs.file(out.name, keep_suffix=False)
+    report_tmp = outputs.file(args.report.resolve(), keep_suffix=False) if args.report else None
     candide = None
     if args.kind == "3d":
         path = args.candide or default_candide_path()
@@ -66,16 +76,23 @@ def run(args: argparse.Namespace) -> int:
         images.append(img)
         points.append(pts)
     t0 = time.perf_counter()
-    model, report = train_model(images, np.array(points), args.kind, candide=candide, config=config,
-                                names=tuple(p[0].name for p in pairs),
-                                progress=lambda it, **kw: tqdm(it, file=sys.stderr, disable=None, **kw))
-    save_model(model, out)
-    if args.report:
-        with atomic_write(args.report, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["image", "fit_rms_px"])
-            w.writerows((n, f"{r:.3f}") for n, r in zip(report.names, report.fit_rms_px))
+    try:
+        model, report = train_model(images, np.array(points), args.kind, candide=candide, config=config,
+                                    names=tuple(p[0].name for p in pairs),
+                                    progress=lambda it, **kw: tqdm(it, file=sys.stderr, disable=None, **kw))
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+        raise InputError(f"{display_name(args.data)}: training failed on these landmarks ({exc}); "
+                         "check the .pts files (degenerate or mismatched points?)") from None
+    with outputs:
+        save_model(model, model_tmp)
+        if report_tmp is not None:
+            with atomic_write(report_tmp, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["image", "fit_rms_px"])
+                w.writerows((n, f"{r:.3f}") for n, r in zip(report.names, report.fit_rms_px, strict=True))
+        outputs.commit()
     r = report.fit_rms_px
-    print(f"trained {args.kind} model on {len(images)} images in {time.perf_counter() - t0:.1f} s -> {out}\n"
-          f"shape fit residual (px): mean {r.mean():.2f}, median {np.median(r):.2f}, max {r.max():.2f}")
+    print(f"trained {args.kind} model on {len(images)} images in {time.perf_counter() - t0:.1f} s -> "
+          f"{display_name(out)}\nshape fit residual (px): mean {r.mean():.2f}, median {np.median(r):.2f}, "
+          f"max {r.max():.2f}")
     return 0

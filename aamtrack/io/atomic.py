@@ -369,8 +369,15 @@ class OutputSet:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if not self._done:
-            self.discard()
+        if self._done:
+            return
+        entries = list(self._entries)
+        self.discard()
+        if isinstance(exc, (OutputError, OSError)):  # name the output, not its temporary file
+            text = str(exc) if isinstance(exc, OutputError) else str(output_error(exc.filename or self.folder, exc))
+            for tmp, final, _ in entries:
+                text = text.replace(_shown(tmp), _shown(final))
+            raise OutputError(text) from None
 
 
 def _remove(path: Path) -> None:

@@ -26,12 +26,12 @@ import numpy as np
 
 from ..errors import InputError
 from .atomic import TemporaryOutput, output_error, temporary_path
+from .pts import N_LANDMARKS
 
 __all__ = ["TrackingCsvWriter", "read_tracking_csv", "csv_columns"]
 
 logger = logging.getLogger(__name__)
 
-N_LANDMARKS = 68
 HEAD = ("frame", "timestamp", "success", "dropped", "status", "confidence")
 POSE = ("pose_Rx", "pose_Ry", "pose_Rz", "pose_Tx", "pose_Ty", "pose_scale")
 INT_COLUMNS = ("frame", "success", "dropped", "face_id")

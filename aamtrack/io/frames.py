@@ -354,7 +354,7 @@ class ImageFrames(FrameSource):
             raise InputError(f"{name}: no images")
         fps = DEFAULT_FPS if fps is None else _check_fps(fps)
         first = None
-        for k, path in enumerate(self.paths):
+        for k, path in enumerate(self.paths):  # noqa: B007 - k is used after the loop
             first = read_image(path)
             if first is not None:
                 break

@@ -25,9 +25,12 @@ import numpy as np
 from ..errors import InputError
 from .atomic import atomic_write
 
-__all__ = ["read_pts", "write_pts", "write_pts_per_frame"]
+__all__ = ["read_pts", "write_pts", "write_pts_per_frame", "N_LANDMARKS"]
 
 logger = logging.getLogger(__name__)
+
+#: Points per face in the iBUG-68 markup, used for every landmark file, CSV column block and model map.
+N_LANDMARKS = 68
 
 
 def _parse_point(text: str, path: str, line_no: int) -> tuple[float, float]:
@@ -43,7 +46,7 @@ def _parse_point(text: str, path: str, line_no: int) -> tuple[float, float]:
     return x, y
 
 
-def read_pts(path: str | os.PathLike, *, n_points: int | None = 68) -> np.ndarray:
+def read_pts(path: str | os.PathLike, *, n_points: int | None = N_LANDMARKS) -> np.ndarray:
     """Read an iBUG ``.pts`` file.
 
     Parameters

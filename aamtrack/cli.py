@@ -44,19 +44,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def quiet_native_logs(verbose: bool) -> None:
-    """Silence FFmpeg's and OpenCV's own log lines (decoder warnings around our one-line error) unless
-    ``verbose``. FFmpeg reads its level once, when OpenCV first opens a video: call this before that. A level
-    the user set in ``OPENCV_FFMPEG_LOGLEVEL`` / ``OPENCV_LOG_LEVEL`` is kept."""
-    if verbose:
+@contextlib.contextmanager
+def quiet_native_logs(verbose: bool):
+    """Within the block, silence FFmpeg's and OpenCV's own log lines (decoder warnings around our one-line
+    error) unless ``verbose``. FFmpeg reads its level once, when OpenCV first opens a video in the process, so
+    this works for a command run as a program (not for a later ``main()`` call in a process that already read
+    videos). A level the user set in ``OPENCV_FFMPEG_LOGLEVEL`` / ``OPENCV_LOG_LEVEL`` is kept."""
+    if verbose or "OPENCV_FFMPEG_LOGLEVEL" in os.environ or "OPENCV_LOG_LEVEL" in os.environ:
+        yield
         return
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")
-    if os.environ["OPENCV_LOG_LEVEL"].upper() == "SILENT":
-        import cv2
+    import cv2
 
-        with contextlib.suppress(AttributeError, cv2.error):
-            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"  # AV_LOG_QUIET
+    previous = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:  # leave the process as found (tests call main() many times)
+        os.environ.pop("OPENCV_FFMPEG_LOGLEVEL", None)
+        cv2.utils.logging.setLogLevel(previous)
 
 
 @contextlib.contextmanager
@@ -85,9 +91,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
-    quiet_native_logs(args.verbose)
     try:
-        with stop_signals_raise():
+        with quiet_native_logs(args.verbose), stop_signals_raise():
             return int(args.func(args) or 0)
     except AamtrackError as exc:
         print(f"aamtrack {args.command}: error: {exc}", file=sys.stderr)

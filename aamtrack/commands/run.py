@@ -127,7 +127,7 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
             raise InputError(f"{input_}: no frames")
         wall = time.perf_counter() - t_start
 
-        track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
+        track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
         summary = {
             "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
             "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],

@@ -55,14 +55,16 @@ def run(args: argparse.Namespace) -> int:
     config = TrainConfig(couples=_parse_couples(args.couples))
     # Output checks before the work: the model and the report are committed together at the end.
     outputs = OutputSet(out.parent)
-    for path in (out, args.report) if args.report else (out,):
+    targets = (out, args.report) if args.report else (out,)
+    for path in targets:
         if not path.parent.is_dir():
             raise InputError(f"{display_name(path.parent)}: output folder does not exist")
-        OutputSet(path.parent).prepare()  # writable?
     if args.report and args.report.resolve() == out.resolve():
         raise InputError("--report and --out name the same file")
-    model_tmp = outputs.file(out.name, keep_suffix=False)
+    model_tmp = outputs.file(out.name, keep_suffix=False)  # refuses a name taken by a folder or a device
     report_tmp = outputs.file(args.report.resolve(), keep_suffix=False) if args.report else None
+    for path in targets:
+        OutputSet(path.parent).prepare()  # writable?
     candide = None
     if args.kind == "3d":
         path = args.candide or default_candide_path()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io.atomic import check_replaceable
+from ..io.frames import open_frames
 from ..io.summary import write_summary_json
 from ..models import default_model_path
 from ..track.benchmark import format_table, run_bench
@@ -50,8 +51,11 @@ def run(args: argparse.Namespace) -> int:
         if not args.json.parent.is_dir():
             raise InputError(f"{args.json.parent}: output folder does not exist")
         check_replaceable(args.json)
+    sizes = _sizes(args.sizes)
+    with open_frames(args.input):  # a bad input fails here, before the models' warm-up
+        pass
     models = args.model or [default_model_path("3d"), default_model_path("2d")]
-    rows = run_bench(args.input, models, _sizes(args.sizes), max_frames=args.frames, threads=args.threads)
+    rows = run_bench(args.input, models, sizes, max_frames=args.frames, threads=args.threads)
     print(f"machine: {platform.node()} {platform.machine()} {_cpu_name()}, python {platform.python_version()}")
     print(format_table(rows))
     if args.json:

@@ -5,8 +5,9 @@ delivered with ``image=None`` (the tracker records it as "unreadable") rather th
 source unusable (missing, not a video, no frames, no images) are found by :func:`open_frames` itself, which
 reads the first frame eagerly, so a command fails before it writes any output.
 
-Timestamps are ``index / fps``: frame-exact and robust. The container's own timestamps
-(``CAP_PROP_POS_MSEC``) are consulted only to size a gap after a failed read, never for ``Frame.timestamp``.
+A video's frame numbers and timestamps come from the stream's presentation timestamps (``CAP_PROP_POS_MSEC``
+after each grab), so a frame the decoder drops silently still has its row and the frames after it keep their
+own numbers (see :class:`VideoFrames`). Images are numbered in order and stamped ``index / fps``.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ class Frame:
     """One frame of a source.
 
     index : int -- 0-based position in the source
-    timestamp : float -- seconds, ``index / fps``
+    timestamp : float -- seconds: the stream's presentation time (video), else ``index / fps``
     image : (H, W, 3) uint8 BGR, or None when the frame could not be decoded or read
     """
 
@@ -133,7 +134,7 @@ class FrameSource:
     Attributes
     ----------
     name : str -- the file, folder or pattern, for messages
-    fps : float -- frames per second (timestamps are ``index / fps``)
+    fps : float -- frames per second (the video's own rate, or as given)
     n_frames : int or None -- number of frames if known (for a video, as the container states it)
     width, height : int -- size of the delivered images (after ``resize``)
     """
@@ -404,7 +405,8 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
         pattern such as ``"dir/*.png"`` (image files among the matches, natural order of their paths); or one
         image file (a one-frame source).
     fps : float, optional
-        Frame rate for timestamps. Default: the video's own rate; 25.0 for images.
+        Frame rate for timestamps (``index / fps``), finite and in (0, 100000]. Default: a video's own
+        presentation timestamps; 25.0 for images.
     resize : (width, height), optional
         Deliver every image resized to this size (INTER_AREA when shrinking, else bilinear).
 
@@ -417,7 +419,8 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
     ------
     InputError
         Missing file or folder, a file that is not a video, a video without frames, a folder or pattern without
-        (readable) images. The first frame is read here, so these surface before any output is written.
+        (readable) images, a bad ``fps``. The first frame is read here, so these surface before any output is
+        written.
     """
     text = os.fspath(source)
     path = Path(text)

@@ -24,3 +24,11 @@ def test_json_into_a_missing_folder_fails_first(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr("aamtrack.commands.bench.run_bench", lambda *a, **kw: pytest.fail("benchmark started"))
     assert main(["bench", str(tmp_path / "clip.mp4"), "--json", str(tmp_path / "no" / "b.json")]) == 1
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_bad_input_fails_before_the_warm_up(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("aamtrack.commands.bench.run_bench", lambda *a, **kw: pytest.fail("benchmark started"))
+    (tmp_path / "clip.mp4").write_text("not a video")
+    assert main(["bench", str(tmp_path / "clip.mp4")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "clip.mp4: not a readable video" in err[0], err

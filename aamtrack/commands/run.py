@@ -69,84 +69,87 @@ def output_dir(input_: str, out_dir: Path | None) -> Path:
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
                replay: bool = False, fps: float | None = None, progress: bool = True) -> dict:
-    """Track one input and write its outputs; returns the summary. Inputs and the output folder are checked
+    """Track one input and write its outputs; returns the summary. The input and the output folder are checked
     before the work; every output is written under a temporary name and all are committed together at the
-    end, so a failed or interrupted run leaves nothing (and an existing output untouched)."""
+    end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were)."""
     t_start = time.perf_counter()
     source = open_frames(input_, fps=fps)
     with source, OutputSet(out_dir) as outputs:
-        model = load_model(model_path)
-        tracker = Tracker(model)
-        outputs.prepare()
-        stem = output_base(input_)[1]
-        names = {"csv": f"{stem}.csv", "summary": f"{stem}.json", "video": f"{stem}_overlay.mp4",
-                 "pts": f"{stem}_pts"}
-        csv_tmp, json_tmp = outputs.file(names["csv"]), outputs.file(names["summary"])
-        pts_tmp = outputs.folder_output(names["pts"]) if pts else None
-        sm = model.shape
-        is3d = sm.kind == "3d"
-        counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
-        t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
-        frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
-        t_first = None
-        with TrackingCsvWriter(csv_tmp, anim_names=sm.coef_names if is3d else (),
-                               shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
-            ov_tmp = outputs.file(names["video"]) if overlay else None
-            ov = OverlayWriter(ov_tmp, source.fps, (source.width, source.height),
-                               triangles=sm.triangles) if overlay else None
-            try:
-                bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
-                           desc=display_name(stem))
-                images = {}
-                for res in tracker.track(_remember(frames, images) if ov else frames):
-                    t_first = t_first or time.perf_counter()
-                    t = time.perf_counter()
-                    csv_w.write(res)
-                    if ov is not None:
-                        ov.write(images.pop(res.frame, None), res)
-                    if pts_tmp is not None and res.success:
-                        write_pts_per_frame(pts_tmp, res)
-                    per_frame["output"].append(time.perf_counter() - t)
-                    for k in ("detect", "pyramid", "search"):
-                        if k in res.timings:
-                            per_frame[k].append(res.timings[k])
-                    counts["read"] += 1
-                    counts[res.status] += 1
-                    bar.update(1)
-                bar.close()
-            except BaseException:
-                if ov is not None:
-                    ov.abort()
-                raise
-            if ov is not None:
-                ov.close()
-                if ov.path != ov_tmp:  # no mp4v encoder: the writer fell back to MJPG .avi
-                    names["video"] = str(Path(names["video"]).with_suffix(ov.path.suffix))
-                    outputs.retarget(ov_tmp, ov.path, out_dir / names["video"])
-        if counts["read"] == 0:
-            raise InputError(f"{input_}: no frames")
-        wall = time.perf_counter() - t_start
-
-        track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
-        summary = {
-            "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
-            "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
-            "frames_lost": counts["lost"], "frames_dropped": counts["dropped"],
-            "frames_unreadable": counts["unreadable"],
-            "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
-            "realtime": replay, "video_fps": source.fps,
-            "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
-                          "track": ms_stats(track_times)},
-            "start_to_first_result_s": (t_first - t_start) if t_first else None,
-            "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
-            "outputs": {k: str(out_dir / names[k]) for k in ("csv", "summary")},
-        }
-        if ov is not None:
-            summary["outputs"]["video"] = str(out_dir / names["video"])
-        if pts:
-            summary["outputs"]["pts"] = str(out_dir / names["pts"])
-        write_summary_json(json_tmp, summary)
+        summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
+                         pts=pts, replay=replay, progress=progress)
         outputs.commit()
+    return summary
+
+
+def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
+           pts: bool, replay: bool, progress: bool) -> dict:
+    model = load_model(model_path)
+    tracker = Tracker(model)
+    outputs.prepare()
+    out_dir = outputs.folder
+    stem = output_base(input_)[1]
+    csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
+    pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
+    sm = model.shape
+    is3d = sm.kind == "3d"
+    counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
+    t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
+    frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
+    t_first = None
+    with TrackingCsvWriter(outputs.file(csv_path.name), anim_names=sm.coef_names if is3d else (),
+                           shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
+        ov_tmp = outputs.file(f"{stem}_overlay.mp4") if overlay else None
+        ov = OverlayWriter(ov_tmp, source.fps, (source.width, source.height),
+                           triangles=sm.triangles) if overlay else None
+        try:
+            bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
+                       desc=display_name(stem))
+            images = {}
+            for res in tracker.track(_remember(frames, images) if ov else frames):
+                t_first = t_first or time.perf_counter()
+                t = time.perf_counter()
+                csv_w.write(res)
+                if ov is not None:
+                    ov.write(images.pop(res.frame, None), res)
+                if pts and res.success:
+                    write_pts_per_frame(pts_dir, res)
+                per_frame["output"].append(time.perf_counter() - t)
+                for k in ("detect", "pyramid", "search"):
+                    if k in res.timings:
+                        per_frame[k].append(res.timings[k])
+                counts["read"] += 1
+                counts[res.status] += 1
+                bar.update(1)
+            bar.close()
+        except BaseException:
+            if ov is not None:
+                ov.abort()
+            raise
+        if ov is not None:
+            ov.close()
+            video_path = outputs.written(ov_tmp, ov.path)  # .avi if the writer fell back to MJPG
+    if counts["read"] == 0:
+        raise InputError(f"{input_}: no frames")
+    wall = time.perf_counter() - t_start
+
+    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
+    summary = {
+        "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
+        "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
+        "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
+        "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
+        "realtime": replay, "video_fps": source.fps,
+        "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
+                      "track": ms_stats(track_times)},
+        "start_to_first_result_s": (t_first - t_start) if t_first else None,
+        "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
+        "outputs": {"csv": str(csv_path), "summary": str(json_path)},
+    }
+    if ov is not None:
+        summary["outputs"]["video"] = str(video_path)
+    if pts:
+        summary["outputs"]["pts"] = str(out_dir / f"{stem}_pts")
+    write_summary_json(outputs.file(json_path.name), summary)
     return summary
 
 

@@ -310,13 +310,15 @@ class OutputSet:
         self._entries.append((tmp, final, True))
         return tmp
 
-    def retarget(self, tmp: Path, new_tmp: Path, new_final: Path) -> None:
-        """The output planned at ``tmp`` was written to ``new_tmp`` and is to be committed as ``new_final``."""
-        for k, (t, _, is_dir) in enumerate(self._entries):
+    def written(self, tmp: Path, actual: Path) -> Path:
+        """The output planned at ``tmp`` was written to ``actual`` (a writer may change the suffix, as the
+        overlay's fallback to .avi does); returns its final path, with that suffix."""
+        for k, (t, final, is_dir) in enumerate(self._entries):
             if t == Path(tmp):
-                check_replaceable(new_final)
-                self._entries[k] = (Path(new_tmp), Path(new_final), is_dir)
-                return
+                final = final.with_suffix(Path(actual).suffix)
+                check_replaceable(final)
+                self._entries[k] = (Path(actual), final, is_dir)
+                return final
         raise KeyError(tmp)
 
     def commit(self) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..errors import InputError
+from ..errors import InputError, OutputError
 from ..io.atomic import OutputSet, atomic_write
 from ..io.dataset import find_pairs, load_pair
 from ..io.frames import display_name
@@ -48,6 +49,26 @@ def _parse_couples(text: str | None) -> tuple:
     return couples
 
 
+def model_bytes_bound(config: TrainConfig) -> int:
+    """An upper bound of a model file's size: every array uncompressed (a texture frame has fewer than
+    tex_width^2 pixels, a couple fewer than 64 parameters; 8 bytes a number; the person couple counted like
+    one more couple). The shipped 3D model's arrays take 0.64 MB; the bound for its couples is 5.0 MB."""
+    n_px = sum(tex * tex for _, tex in config.couples) + max(tex for _, tex in config.couples) ** 2
+    per_px = 8 * (2 + 3 + 3 + 1 + config.n_appearance + 64)  # pix_xy, pix_vid, pix_bary, mean, appearance, U
+    return n_px * per_px + (1 << 20)  # + mesh, maps and metadata
+
+
+def check_free_space(folder: Path, need: int) -> None:
+    """OutputError before the work when ``folder``'s file system has less than ``need`` bytes free."""
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return  # cannot tell: the atomic write still leaves nothing half-written
+    if free < need:
+        raise OutputError(f"{display_name(folder)}: {free / 1e6:.1f} MB free, the model may need up to "
+                          f"{need / 1e6:.1f} MB")
+
+
 def run(args: argparse.Namespace) -> int:
     out = args.out or Path("models") / f"{args.kind}.npz"
     if out.is_dir():
@@ -65,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     report_tmp = outputs.file(args.report.resolve(), keep_suffix=False) if args.report else None
     for path in targets:
         OutputSet(path.parent).prepare()  # writable?
+    check_free_space(out.parent, model_bytes_bound(config))
     candide = None
     if args.kind == "3d":
         path = args.candide or default_candide_path()

@@ -153,3 +153,16 @@ def test_report_failing_after_the_model_leaves_no_model(tmp_path, dataset, capsy
     _one_line_error(capsys, "fit.csv", "no space left")
     assert out.read_bytes() == b"the previous model"  # untouched, and no new model beside it
     assert files_below(tmp_path / "models") == ["m.npz"] and files_below(tmp_path / "reports") == []
+
+
+def test_too_little_disk_space_fails_before_training(tmp_path, dataset, capsys, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(10**9, 10**9 - 300_000, 300_000))
+    monkeypatch.setattr("aamtrack.commands.train.train_model", lambda *a, **kw: pytest.fail("trained"))
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "0.3 MB free", "may need up to 5.0 MB")
+    assert not out.exists()

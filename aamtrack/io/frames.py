@@ -37,6 +37,7 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".p
 DEFAULT_FPS = 25.0
 MAX_FPS = 100_000.0  # a frame rate above this is a typo, not a camera
 _MAX_FAILED_GRABS = 8  # consecutive failed grabs before a video read gives up (end of stream or a broken tail)
+_MAX_WARNINGS = 3  # problems of one read reported as warnings; the rest at INFO (-v)
 
 
 @dataclass(frozen=True, eq=False)
@@ -279,14 +280,20 @@ class VideoFrames(FrameSource):
         next_index = 0
         failed = 0
         pending = first  # (stream time, image) of a frame grabbed but not yet delivered
+        n_reports = [0]
+
+        def report(msg, *args):  # the first few problems as warnings, the rest with -v only (a badly damaged
+            n_reports[0] += 1    # file must not flood the terminal)
+            logger.log(logging.WARNING if n_reports[0] <= _MAX_WARNINGS else logging.INFO, msg, *args)
+
         while not self._closed:
             if pending is not None:
                 t, image = pending
                 pending = None
                 index = self._index_of(t, next_index)
                 if index > next_index:
-                    logger.warning("%s: frame(s) %d..%d missing from the decoded stream (damaged); delivered empty",
-                                   self.name, next_index, index - 1)
+                    report("%s: frame(s) %d..%d missing from the decoded stream (damaged); delivered empty",
+                           self.name, next_index, index - 1)
                     for k in range(next_index, index):
                         yield self._frame(k, None)
                 yield self._make(index, t, image)
@@ -301,11 +308,14 @@ class VideoFrames(FrameSource):
             t = _stream_time(cap)
             ok, image = cap.retrieve()
             if not ok:
-                logger.warning("%s: frame at %s could not be decoded", self.name,
-                               f"{t:.3f} s" if t is not None else f"position {next_index}")
+                report("%s: frame at %s could not be decoded", self.name,
+                       f"{t:.3f} s" if t is not None else f"position {next_index}")
             pending = (t, image if ok else None)
         if self._closed:
             return
+        if n_reports[0] > _MAX_WARNINGS:
+            logger.warning("%s: %d more damaged frames or stretches (aamtrack -v lists them)", self.name,
+                           n_reports[0] - _MAX_WARNINGS)
         if self.n_frames is not None and next_index < self.n_frames:
             logger.warning("%s: reading stopped at frame %d of %d (damaged or truncated file); the rest delivered "
                            "empty", self.name, next_index, self.n_frames)

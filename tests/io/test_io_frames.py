@@ -289,3 +289,26 @@ def test_video_name_that_is_not_utf8(tmp_path):
     os.rename(path, odd)
     with open_frames(os.fsdecode(odd)) as source:  # segfaulted in cv2.VideoCapture before
         assert [decode_index(f.image) for f in source] == list(range(5))
+
+
+def test_damage_reports_are_bounded(tmp_path, caplog, monkeypatch):
+    # A badly damaged file gives a few warnings and one summary line, not one line per bad frame.
+    import logging
+
+    import aamtrack.io.frames as frames_mod
+
+    monkeypatch.setattr(frames_mod, "_MAX_WARNINGS", 1)
+    n = 40
+    path = make_video(tmp_path / "clip.mp4", n, fourcc="mp4v", fps=30.0, seed=SEED, size=(64, 48))
+    rng = np.random.default_rng(SEED)
+    for _ in range(6):
+        _damage(path, rng, 150)
+    with caplog.at_level(logging.INFO, logger="aamtrack.io.frames"):
+        with open_frames(path) as source:
+            frames = list(source)
+    assert len(frames) == n
+    problems = [r for r in caplog.records if "missing from the decoded" in r.message or "not be decoded" in r.message]
+    assert len(problems) >= 2  # the damage did cost several frames
+    warned = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert sum(r in warned for r in problems) == 1  # only the first as a warning, the others at INFO (-v)
+    assert any(f"{len(problems) - 1} more damaged" in r.message for r in warned)

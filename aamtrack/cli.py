@@ -27,8 +27,15 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error (exit 2), like every other error of the command line."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} -h')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aamtrack", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="aamtrack", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"aamtrack {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log progress details to stderr, with FFmpeg's and OpenCV's own warnings")
@@ -88,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
-        parser.print_help(sys.stderr)
+        print(f"aamtrack: error: no command given: one of {', '.join(COMMANDS)} (see 'aamtrack -h')",
+              file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
     try:

@@ -74,12 +74,14 @@ def run(args: argparse.Namespace) -> int:
     if out.is_dir():
         raise InputError(f"{display_name(out)}: is a folder, expected a model file name")
     config = TrainConfig(couples=_parse_couples(args.couples))
+    pairs = find_pairs(args.data)
     # Output checks before the work: the model and the report are committed together at the end.
     outputs = OutputSet(out.parent)
     targets = (out, args.report) if args.report else (out,)
     for path in targets:
         if not path.parent.is_dir():
-            raise InputError(f"{display_name(path.parent)}: output folder does not exist")
+            raise InputError(f"{display_name(path.parent)}: output folder does not exist"
+                             + (" (the default --out is models/<kind>.npz here)" if args.out is None else ""))
     if args.report and args.report.resolve() == out.resolve():
         raise InputError("--report and --out name the same file")
     model_tmp = outputs.file(out.name, keep_suffix=False)  # refuses a name taken by a folder or a device
@@ -93,7 +95,6 @@ def run(args: argparse.Namespace) -> int:
         if path is None:
             raise InputError("--kind 3d needs the Candide-3 mesh: pass --candide path/to/candide3.wfm")
         candide = read_wfm(path)
-    pairs = find_pairs(args.data)
     images, points = [], []
     for img_path, pts_path in tqdm(pairs, desc="read", unit="img", file=sys.stderr, disable=None):
         img, pts = load_pair(img_path, pts_path)

@@ -35,7 +35,7 @@ logger = logging.getLogger(__name__)
 #: Image file suffixes read as frames (run) and as training images (train): the formats OpenCV decodes.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pbm", ".jp2")
 DEFAULT_FPS = 25.0
-MAX_FPS = 100_000.0  # a frame rate above this is a typo, not a camera
+MIN_FPS, MAX_FPS = 1e-3, 1e5  # frame rates outside are typos, not cameras
 _MAX_FAILED_GRABS = 8  # consecutive failed grabs before a video read gives up (end of stream or a broken tail)
 _MAX_WARNINGS = 3  # problems of one read reported as warnings; the rest at INFO (-v)
 
@@ -101,8 +101,8 @@ def _check_fps(fps) -> float:
         value = float(fps)
     except (TypeError, ValueError):
         raise InputError(f"frame rate {fps!r} is not a number") from None
-    if not (math.isfinite(value) and 0 < value <= MAX_FPS):
-        raise InputError(f"frame rate must be a finite number of frames per second in (0, {MAX_FPS:g}], "
+    if not (math.isfinite(value) and MIN_FPS <= value <= MAX_FPS):
+        raise InputError(f"frame rate must be a number of frames per second in [{MIN_FPS:g}, {MAX_FPS:g}], "
                          f"got {fps!r}")
     return value
 
@@ -415,7 +415,7 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
         pattern such as ``"dir/*.png"`` (image files among the matches, natural order of their paths); or one
         image file (a one-frame source).
     fps : float, optional
-        Frame rate for timestamps (``index / fps``), finite and in (0, 100000]. Default: a video's own
+        Frame rate for timestamps (``index / fps``), in [0.001, 100000]. Default: a video's own
         presentation timestamps; 25.0 for images.
     resize : (width, height), optional
         Deliver every image resized to this size (INTER_AREA when shrinking, else bilinear).

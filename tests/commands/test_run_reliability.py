@@ -89,7 +89,7 @@ def test_file_name_that_is_not_utf8(tmp_path, video, model_file, capsys):
     assert "caf\\xe9 \\xff.csv" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("fps", ["nan", "inf", "-inf", "0", "-5", "1e9"])
+@pytest.mark.parametrize("fps", ["nan", "inf", "-inf", "0", "-5", "1e9", "1e-300"])
 def test_bad_fps_is_one_line(tmp_path, video, model_file, capsys, fps):
     out = tmp_path / "out"
     assert run(video, "--model", model_file, "--out-dir", out, f"--fps={fps}") == 1

@@ -73,7 +73,8 @@ def opencv_path(path: str | os.PathLike, *, directory: bool = False) -> Iterator
 
     OpenCV takes file names as UTF-8 text and crashes (segfault) on a Python name holding bytes that are not
     UTF-8. Such a path is opened here and handed over as ``/proc/self/fd/N`` (Linux), valid inside the block;
-    where that is impossible the name is refused with :class:`InputError`.
+    where that is impossible the name is refused with :class:`InputError`. Other names are made absolute:
+    FFmpeg reads a relative name with a colon (``10:00.mp4``, ``pipe:1.mp4``) as a protocol and a URL.
     """
     text = os.fspath(path)
     try:
@@ -81,7 +82,7 @@ def opencv_path(path: str | os.PathLike, *, directory: bool = False) -> Iterator
     except UnicodeEncodeError:
         pass
     else:
-        yield text
+        yield os.path.abspath(text)
         return
     if not os.path.isdir("/proc/self/fd"):
         raise InputError(f"{display_name(text)}: file name is not valid UTF-8 (rename the file)")

@@ -312,3 +312,12 @@ def test_damage_reports_are_bounded(tmp_path, caplog, monkeypatch):
     warned = [r for r in caplog.records if r.levelno >= logging.WARNING]
     assert sum(r in warned for r in problems) == 1  # only the first as a warning, the others at INFO (-v)
     assert any(f"{len(problems) - 1} more damaged" in r.message for r in warned)
+
+
+@pytest.mark.parametrize("name", ["10:00.avi", "pipe:1.avi", "a%d [1].avi", "#x?.avi"])
+def test_video_names_ffmpeg_would_misread(tmp_path, name, monkeypatch):
+    # Relative names with a colon read as FFmpeg protocols (pipe:1 would even read stdin) unless made absolute.
+    make_video(tmp_path / name, 4, fourcc="MJPG", seed=SEED)
+    monkeypatch.chdir(tmp_path)
+    with open_frames(name) as source:
+        assert [decode_index(f.image) for f in source] == list(range(4))

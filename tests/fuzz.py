@@ -1,19 +1,26 @@
-"""Seeded fuzzing helpers: damage a file in one of a few ways, run a command on it in-process, and check the
-outcome is clean: exit 0, or exit 1 with exactly one line on stderr; never a traceback (an exception escaping
-``main``) or a signal (which would take the test process down with it); never a stray file.
+"""Seeded fuzzing helpers: damage a file in one of a few ways, run commands on the damaged files, and check
+each outcome is clean: exit 0, or exit 1 with exactly one line on stderr; never a traceback (an exception
+escaping ``main``) or a signal; never a stray file.
 
-A case is ``(name, make)``: ``make(tmp_path, rng)`` writes the damaged input and returns the argv to run.
-Video cases are in tests/test_fuzz.py; model-file cases plug in the same way (a damaged copy of a model file,
-run with ``aamtrack run CLIP --model DAMAGED``).
+:func:`run_batch` runs many cases in one child process (one import of numba and OpenCV for all of them), so
+a crash by a signal is reported with the case that caused it instead of taking the test session down, and
+FFmpeg's own output on the child's stderr is seen too. :func:`check_outcome` then checks one case.
+
+Video cases are in tests/test_fuzz.py. Model-file cases plug in the same way: ``damage(model, dst, rng)``,
+then a :class:`Case` with ``["run", CLIP, "--model", dst, "--out-dir", ...]``.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from aamtrack.cli import main
 
 
 def _overwrite(data: bytearray, rng) -> str:
@@ -88,25 +95,74 @@ def listing(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in Path(folder).rglob("*")}
 
 
-def check_clean_run(argv: list[str], capsys, *, workdir: Path, allowed_new: set[str], what: str = "") -> int:
-    """Run ``main(argv)``; assert a clean outcome (see the module docstring) and return the exit code.
+@dataclass
+class Case:
+    """One fuzz case: ``argv`` for ``aamtrack``, run with everything it reads and writes inside ``workdir``;
+    after exit 0 only ``allowed_new`` paths (relative to ``workdir``) may have appeared there."""
 
-    ``workdir`` is the folder all inputs and outputs of the case live in; after exit 0 only ``allowed_new``
-    files may have appeared in it, after exit 1 nothing at all.
-    """
-    before = listing(workdir)
-    capsys.readouterr()
-    code = main(argv)  # an exception escaping here is the traceback a user would have seen
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    after = listing(workdir)
-    new = after - before
+    name: str
+    argv: list[str]
+    workdir: Path
+    allowed_new: set[str] = field(default_factory=set)
+    before: set[str] = field(default_factory=set)
+    code: object = None
+    err: list[str] = field(default_factory=list)
+
+
+_CHILD = r"""
+import contextlib, io, json, sys, traceback
+from aamtrack.cli import main
+for line in sys.stdin:
+    case = json.loads(line)
+    print(json.dumps({"start": case["name"]}), flush=True)
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        try:
+            code = main(case["argv"])
+        except SystemExit as exc:
+            code = exc.code
+        except BaseException:
+            code = "traceback"
+            err.write(traceback.format_exc())
+    print(json.dumps({"name": case["name"], "code": code, "err": err.getvalue()}), flush=True)
+"""
+
+
+def run_batch(cases: list[Case], *, timeout: float = 300) -> str:
+    """Run every case in one child process (in order); fill ``code``, ``err`` and ``before`` of each.
+    Returns the child's own stderr (file-descriptor level: FFmpeg, OpenCV, crashes). Raises AssertionError
+    naming the case if the child dies by a signal."""
+    for c in cases:
+        c.before = listing(c.workdir)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("OPENCV_")}
+    stdin = "".join(json.dumps({"name": c.name, "argv": [str(a) for a in c.argv]}) + "\n" for c in cases)
+    proc = subprocess.run([sys.executable, "-c", _CHILD], input=stdin, capture_output=True, text=True,
+                          timeout=timeout, env=env)
+    by_name = {c.name: c for c in cases}
+    running = None
+    for line in proc.stdout.splitlines():
+        msg = json.loads(line)
+        if "start" in msg:
+            running = msg["start"]
+            continue
+        case = by_name[msg["name"]]
+        case.code, case.err = msg["code"], [s for s in msg["err"].splitlines() if s.strip()]
+        running = None
+    assert proc.returncode == 0, (f"child died (exit {proc.returncode}) in case {running}", proc.stderr[-2000:])
+    return proc.stderr
+
+
+def check_outcome(case: Case) -> None:
+    """Assert the clean outcome of a case :func:`run_batch` ran (see the module docstring)."""
+    what, err = case.name, case.err
+    assert case.code in (0, 1), (what, case.code, err)
+    after = listing(case.workdir)
+    new = after - case.before
     errors = [line for line in err if ": error:" in line]
-    assert code in (0, 1), (what, code, err)
-    if code == 1:
+    if case.code == 1:
         assert len(errors) == 1 and err[-1] == errors[0], (what, err)
         assert new == set(), (what, sorted(new))
     else:
         assert errors == [], (what, err)
-        assert new <= allowed_new, (what, sorted(new - allowed_new))
+        assert new <= case.allowed_new, (what, sorted(new - case.allowed_new))
     assert not any(".tmp" in name for name in after), (what, sorted(after))  # no temporary file left
-    return code

@@ -246,7 +246,7 @@ class OutputSet:
     """All outputs of one run, built under temporary names in ``folder`` and committed together at the end.
 
     ``prepare()`` creates the folder if needed and checks it is writable, before any work. Each output is
-    written to the temporary name :meth:`file` or :meth:`folder` hands out; :meth:`commit` then renames them
+    written to the temporary name :meth:`file` or :meth:`folder_output` hands out; :meth:`commit` then renames them
     all to their final names, or, if any rename fails, puts back what was there before: all or none. Used as a
     context manager, any exception (including KeyboardInterrupt and the signals the CLI turns into one)
     discards the temporaries and removes a folder ``prepare()`` created, so a failed run leaves nothing behind.
@@ -375,8 +375,12 @@ class OutputSet:
             return
         entries = list(self._entries)
         self.discard()
-        if isinstance(exc, (OutputError, OSError)):  # name the output, not its temporary file
-            text = str(exc) if isinstance(exc, OutputError) else str(output_error(exc.filename or self.folder, exc))
+        if isinstance(exc, OSError) and exc.filename is not None:  # an output's own write failed
+            names = [str(t) for t, _, _ in entries]
+            if any(os.fsdecode(exc.filename).startswith(n) for n in names):
+                exc = output_error(exc.filename, exc)
+        if isinstance(exc, OutputError):  # name the output, not its temporary file
+            text = str(exc)
             for tmp, final, _ in entries:
                 text = text.replace(_shown(tmp), _shown(final))
             raise OutputError(text) from None

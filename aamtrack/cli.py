@@ -109,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{os.fsencode(exc.filename).decode('utf-8', 'backslashreplace')}: " if exc.filename else ""
         print(f"aamtrack {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 1
+    except MemoryError:
+        print(f"aamtrack {args.command}: error: out of memory (input or options too large for this machine)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
         name = "interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"

@@ -24,3 +24,15 @@ def test_no_command(capsys):
     assert main(["-v"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no command given" in err[0], err
+
+
+@pytest.mark.parametrize("exc,needle", [(MemoryError(), "out of memory"),
+                                        (OSError(5, "Input/output error", "clip.mp4"), "clip.mp4: Input/output error")])
+def test_unexpected_resource_errors_are_one_line(capsys, monkeypatch, exc, needle):
+    def fail(*a, **kw):
+        raise exc
+
+    monkeypatch.setattr("aamtrack.commands.run.track_file", fail)
+    assert main(["run", "clip.mp4"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aamtrack run: error:") and needle in err[0], err

@@ -41,11 +41,11 @@ def _parse_couples(text: str | None) -> tuple:
         return TrainConfig().couples
     try:
         couples = tuple(tuple(int(v) for v in item.split(":")) for item in text.split(","))
-        if any(len(c) != 2 or c[1] > c[0] or c[1] < 4 or c[0] > 4096 for c in couples):
+        if any(len(c) != 2 or c[1] > c[0] or c[1] < 4 or c[1] > 256 or c[0] > 4096 for c in couples):
             raise ValueError
     except ValueError:
         raise InputError(f"--couples {text!r}: expected FACE_PX:TEX_WIDTH pairs with "
-                         "4 <= TEX_WIDTH <= FACE_PX <= 4096") from None
+                         "4 <= TEX_WIDTH <= FACE_PX <= 4096 and TEX_WIDTH <= 256") from None
     return couples
 
 

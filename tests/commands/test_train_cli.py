@@ -77,9 +77,10 @@ def test_unreadable_image(tmp_path, dataset, capsys):
     assert not out.exists()
 
 
-def test_bad_couples(tmp_path, dataset, capsys):
+@pytest.mark.parametrize("couples", ["32:64", "4096:4096", "abc", "64:32,", "0:0"])
+def test_bad_couples(tmp_path, dataset, capsys, couples):
     out = tmp_path / "m.npz"
-    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "32:64"]) == 1
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", couples]) == 1
     _one_line_error(capsys, "--couples")
 
 

@@ -29,6 +29,7 @@ def register(sub) -> None:
 
 MAX_SIDE = 7680  # 8K UHD width: larger frames are a typo (100000x100000 would need 30 GB per frame)
 MAX_FRAMES = 1_000_000
+MAX_HELD_BYTES = 4e9
 
 
 def _sizes(text: str) -> list[tuple[int, int]]:
@@ -52,6 +53,10 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{args.json.parent}: output folder does not exist")
         check_replaceable(args.json)
     sizes = _sizes(args.sizes)
+    held = max(w * h * 3 for w, h in sizes) * args.frames  # bench_one decodes all frames first, then tracks
+    if held > MAX_HELD_BYTES:
+        raise InputError(f"--frames {args.frames} at {args.sizes}: would hold {held / 1e9:.1f} GB of frames in "
+                         f"memory (at most {MAX_HELD_BYTES / 1e9:.0f} GB); use fewer frames or smaller sizes")
     with open_frames(args.input):  # a bad input fails here, before the models' warm-up
         pass
     models = args.model or [default_model_path("3d"), default_model_path("2d")]

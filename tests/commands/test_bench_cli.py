@@ -9,6 +9,7 @@ from aamtrack.cli import main
     (["--frames", "-3"], "--frames -3"),
     (["--frames", "0"], "--frames 0"),
     (["--sizes", "100000x100000"], "--sizes"),
+    (["--sizes", "7680x4320", "--frames", "300"], "would hold 29.9 GB"),
     (["--sizes", "640x480,8x8"], "--sizes"),
     (["--sizes", "640"], "--sizes"),
     (["--threads", "0"], "--threads"),

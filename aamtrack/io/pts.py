@@ -67,7 +67,7 @@ def read_pts(path: str | os.PathLike, *, n_points: int | None = N_LANDMARKS) -> 
     Returns
     -------
     points : (n_points, 2) float64
-        x, y per point, in the file's pixel coordinates.
+        x, y per point, in the file's pixel coordinates (1-based, unshifted: see the module docstring).
 
     Raises
     ------

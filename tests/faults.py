@@ -90,12 +90,14 @@ def disk_full(monkeypatch, under: Path, budget: int) -> list[int]:
 
 
 @contextlib.contextmanager
-def tiny_tmpfs(folder: Path, size: str = "64k"):
-    """Mount a tmpfs of ``size`` on ``folder`` for the block (needs root); skips the test where impossible."""
+def tiny_tmpfs(folder: Path, size: str = "64k", *, read_only: bool = False):
+    """Mount a tmpfs of ``size`` (read-only if asked) on ``folder`` for the block (needs root); skips the test
+    where that is impossible."""
     folder.mkdir(parents=True, exist_ok=True)
     if os.geteuid() != 0:
         pytest.skip("mounting a tmpfs needs root")
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)], capture_output=True)
+    options = f"size={size}" + (",ro" if read_only else "")
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True)
     if r.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode(errors='replace').strip()}")
     try:

@@ -141,6 +141,15 @@ def test_unwritable_output_folder_fails_before_the_work(tmp_path, video, model_f
     assert files_below(out) == []
 
 
+def test_real_read_only_file_system(tmp_path, video, model_file, capsys):
+    with tiny_tmpfs(tmp_path / "ro", read_only=True) as mount:
+        code = run(video, "--model", model_file, "--out-dir", mount / "out")
+        left = files_below(mount)
+    assert code == 1
+    one_error_line(capsys, "Read-only file system")
+    assert left == []
+
+
 @pytest.mark.parametrize("budget", [100, 5_000, 15_000, 20_500])
 def test_disk_full_leaves_nothing(tmp_path, video, model_file, capsys, monkeypatch, budget):
     # A full run writes 21.1 kB: CSV 10.8 kB (buffered by 8 kB), 8 .pts files of 1.1 kB, JSON 1.4 kB written

@@ -193,6 +193,11 @@ class VideoFrames(FrameSource):
     Indices never pass the container's frame count, nor go back. For a variable-frame-rate file the index is
     an approximation (the presentation time on the nominal rate's grid). With ``fps`` given, timestamps are
     ``index / fps`` instead of the stream's own.
+
+    Limitation: the rows stay aligned as far as the stream's timestamps are right. MP4/MOV/MKV take them from
+    the container's index, so a damaged packet costs its own row only. AVI has no per-frame timestamps:
+    FFmpeg numbers the chunks it finds, and a chunk whose header is destroyed shifts the frames after it by
+    one (the count is still made up at the end, with an empty last row).
     """
 
     def __init__(self, path: str | os.PathLike, *, fps: float | None = None, resize=None):

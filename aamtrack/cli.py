@@ -62,14 +62,17 @@ def quiet_native_logs(verbose: bool):
         return
     import cv2
 
+    cv_log = getattr(getattr(cv2, "utils", None), "logging", None)  # absent from old OpenCV builds
     os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"  # AV_LOG_QUIET
-    previous = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    previous = cv_log.getLogLevel() if cv_log else None
+    if cv_log:
+        cv_log.setLogLevel(cv_log.LOG_LEVEL_SILENT)
     try:
         yield
     finally:  # leave the process as found (tests call main() many times)
         os.environ.pop("OPENCV_FFMPEG_LOGLEVEL", None)
-        cv2.utils.logging.setLogLevel(previous)
+        if cv_log:
+            cv_log.setLogLevel(previous)
 
 
 @contextlib.contextmanager

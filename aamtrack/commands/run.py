@@ -4,7 +4,9 @@ per frame), a JSON summary and optionally an overlay video and per-frame .pts fi
 from __future__ import annotations
 
 import argparse
+import glob
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -13,7 +15,8 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import open_frames
+from ..io.atomic import OutputSet
+from ..io.frames import display_name, open_frames
 from ..io.overlay import OverlayWriter
 from ..io.pts import write_pts_per_frame
 from ..io.summary import write_summary_json
@@ -42,41 +45,65 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def output_base(input_: str) -> tuple[Path, str]:
+    """(folder the input lives in, name for its outputs): a file's stem, a folder's name, and for a glob
+    pattern the name of the folder its matches are in (``'shots/*.png'`` -> ``shots``). A name that exists is
+    never read as a pattern, so ``my video [1].mp4`` is a file."""
+    src = Path(input_)
+    if not os.path.lexists(input_) and glob.has_magic(input_):
+        src = next((p for p in src.parents if not glob.has_magic(str(p))), Path("."))
+        src = src.resolve() if src == Path(".") else src
+        return src.parent, src.name or "frames"
+    if src.is_dir():
+        src = src.resolve() if src.name in ("", ".", "..") else src
+        return src.parent, src.name or "frames"
+    return src.parent, src.stem or src.name
+
+
 def output_dir(input_: str, out_dir: Path | None) -> Path:
     if out_dir is not None:
         return out_dir
-    src = Path(input_)
-    if any(ch in input_ for ch in "*?["):
-        src = Path(input_).parent
-    return src.parent / f"{src.stem or src.name}_aamtrack"
+    parent, stem = output_base(input_)
+    return parent / f"{stem}_aamtrack"
 
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
                replay: bool = False, fps: float | None = None, progress: bool = True) -> dict:
-    """Track one input and write its outputs; returns the summary. Inputs are checked before anything is
-    written; every output appears complete or not at all."""
+    """Track one input and write its outputs; returns the summary. The input and the output folder are checked
+    before the work; every output is written under a temporary name and all are committed together at the
+    end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were)."""
     t_start = time.perf_counter()
     source = open_frames(input_, fps=fps)
+    with source, OutputSet(out_dir) as outputs:
+        summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
+                         pts=pts, replay=replay, progress=progress)
+        outputs.commit()
+    return summary
+
+
+def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
+           pts: bool, replay: bool, progress: bool) -> dict:
     model = load_model(model_path)
     tracker = Tracker(model)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = Path(source.name).stem if Path(source.name).suffix else Path(source.name).name
+    outputs.prepare()
+    out_dir = outputs.folder
+    stem = output_base(input_)[1]
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
+    pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
     sm = model.shape
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
     t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
     frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
     t_first = None
-    with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
-                                   shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
-        ov = OverlayWriter(out_dir / f"{stem}_overlay.mp4", source.fps, (source.width, source.height),
+    with TrackingCsvWriter(outputs.file(csv_path.name), anim_names=sm.coef_names if is3d else (),
+                           shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
+        ov_tmp = outputs.file(f"{stem}_overlay.mp4") if overlay else None
+        ov = OverlayWriter(ov_tmp, source.fps, (source.width, source.height),
                            triangles=sm.triangles) if overlay else None
         try:
             bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
-                       desc=stem)
+                       desc=display_name(stem))
             images = {}
             for res in tracker.track(_remember(frames, images) if ov else frames):
                 t_first = t_first or time.perf_counter()
@@ -85,7 +112,7 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
                 if ov is not None:
                     ov.write(images.pop(res.frame, None), res)
                 if pts and res.success:
-                    write_pts_per_frame(out_dir / f"{stem}_pts", res)
+                    write_pts_per_frame(pts_dir, res)
                 per_frame["output"].append(time.perf_counter() - t)
                 for k in ("detect", "pyramid", "search"):
                     if k in res.timings:
@@ -100,11 +127,12 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
             raise
         if ov is not None:
             ov.close()
+            video_path = outputs.written(ov_tmp, ov.path)  # .avi if the writer fell back to MJPG
     if counts["read"] == 0:
         raise InputError(f"{input_}: no frames")
     wall = time.perf_counter() - t_start
 
-    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
+    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
     summary = {
         "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
         "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
@@ -118,8 +146,10 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},
     }
     if ov is not None:
-        summary["outputs"]["video"] = str(ov.path)
-    write_summary_json(json_path, summary)
+        summary["outputs"]["video"] = str(video_path)
+    if pts:
+        summary["outputs"]["pts"] = str(out_dir / f"{stem}_pts")
+    write_summary_json(outputs.file(json_path.name), summary)
     return summary
 
 
@@ -135,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
                    overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps)
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
-          f"{s['fps_end_to_end']:.0f} fps end to end -> {s['outputs']['csv']}")
+          f"{s['fps_end_to_end']:.0f} fps end to end -> {display_name(s['outputs']['csv'])}")
     if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {args.input}", file=sys.stderr)
+        print(f"aamtrack run: warning: no face found in any frame of {display_name(args.input)}", file=sys.stderr)
     return 0

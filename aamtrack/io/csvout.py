@@ -9,7 +9,8 @@ Columns, in order::
     <animation unit names>, <shape parameter names>  (exactly as given)
 
 ``frame`` is 0-based, ``timestamp`` in seconds, rotations in radians, translation and landmarks in image pixels,
-``pose_scale`` in pixels per model unit, 3D landmarks in model units (pose removed). Frames without a face have
+``pose_scale`` in pixels per model unit, 3D landmarks in model units (pose removed). Pixel positions use the
+``.pts`` files' convention (see :mod:`aamtrack.io.pts`). Frames without a face have
 ``success`` 0 and empty landmark, pose and parameter fields; any NaN is written as an empty field.
 """
 
@@ -25,13 +26,13 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from .atomic import TemporaryOutput, temporary_path
+from .atomic import TemporaryOutput, output_error, temporary_path
+from .pts import N_LANDMARKS
 
 __all__ = ["TrackingCsvWriter", "read_tracking_csv", "csv_columns"]
 
 logger = logging.getLogger(__name__)
 
-N_LANDMARKS = 68
 HEAD = ("frame", "timestamp", "success", "dropped", "status", "confidence")
 POSE = ("pose_Rx", "pose_Ry", "pose_Rz", "pose_Tx", "pose_Ty", "pose_scale")
 INT_COLUMNS = ("frame", "success", "dropped", "face_id")
@@ -102,9 +103,12 @@ class TrackingCsvWriter(TemporaryOutput):
                                                         with_3d=with_3d, n_landmarks=n_landmarks)
         self.n_rows = 0
         self._tmp = temporary_path(self.path)
-        self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        try:
+            self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        except OSError as exc:
+            raise output_error(self.path, exc) from None
         self._writer = csv.writer(self._handle, lineterminator="\n")
-        self._writer.writerow(self.columns)
+        self._write_row(self.columns)
 
     def _row(self, result) -> list[str]:
         status = str(result.status)
@@ -143,8 +147,15 @@ class TrackingCsvWriter(TemporaryOutput):
             raise ValueError(f"{self.path}: writer is closed")
         if len(leading) != len(self.leading):
             raise ValueError(f"{self.path}: {len(leading)} leading values for columns {self.leading}")
-        self._writer.writerow([str(v) for v in leading] + self._row(result))
+        self._write_row([str(v) for v in leading] + self._row(result))
         self.n_rows += 1
+
+    def _write_row(self, row: list[str]) -> None:
+        try:
+            self._writer.writerow(row)
+        except OSError as exc:  # disk full, I/O error: nothing half-written stays behind
+            self.abort()
+            raise output_error(self.path, exc) from None
 
     def _release(self) -> None:
         self._handle.close()

@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import logging
 import os
+import secrets
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..errors import OutputError
-from .atomic import TemporaryOutput, discard_temporary, temporary_path
+from .atomic import TemporaryOutput, check_replaceable, discard_temporary
+from .frames import opencv_path
 
 __all__ = ["OverlayWriter", "mesh_edges", "draw_result"]
 
@@ -112,8 +114,12 @@ class OverlayWriter(TemporaryOutput):
         attempts.append((path.with_suffix(".avi"), "MJPG"))
         self._handle = None
         for target, fourcc in attempts:
-            tmp = temporary_path(target, keep_suffix=True)
-            writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps), self.size)
+            check_replaceable(target)
+            # An ASCII temporary name, handed to OpenCV through a name it can take (see opencv_path).
+            name = f".overlay.{secrets.token_hex(4)}.tmp{target.suffix}"
+            tmp = target.parent / name
+            with opencv_path(target.parent, directory=True) as folder:
+                writer = cv2.VideoWriter(f"{folder}/{name}", cv2.VideoWriter_fourcc(*fourcc), float(fps), self.size)
             if writer.isOpened():
                 if target != path:
                     logger.warning("%s: cannot open an mp4v video writer; writing MJPG to %s instead", path, target)
@@ -150,6 +156,19 @@ class OverlayWriter(TemporaryOutput):
 
     def _release(self) -> None:
         self._handle.release()
+
+    def _finish(self) -> None:
+        """OpenCV's writer reports no write error (a full disk leaves an unplayable file): read the finished
+        file's frame count back and refuse a file that does not hold every frame written."""
+        with opencv_path(self._tmp) as name:
+            cap = cv2.VideoCapture(name, cv2.CAP_FFMPEG)
+        try:
+            n = cap.get(cv2.CAP_PROP_FRAME_COUNT) if cap.isOpened() else -1
+        finally:
+            cap.release()
+        if n != self.n_frames:
+            raise OutputError(f"{self.path}: overlay video could not be written completely "
+                              f"({'unreadable' if n < 0 else f'{n:.0f} of {self.n_frames} frames'}; disk full?)")
 
     def _closed(self) -> None:
         logger.info("%s: %d frames", self.path, self.n_frames)

@@ -23,10 +23,18 @@ from ..train.pipeline import TrainConfig, train_model
 def register(sub) -> None:
     p = sub.add_parser("train", help="train a 2D or 3D model from annotated images",
                        description="Learn shape, mean texture and update matrices from a folder of images, each "
-                                   "with an iBUG .pts file (68 points) of the same name.")
+                                   "with an iBUG .pts file (68 points) of the same name.",
+                       epilog="examples:\n"
+                              "  aamtrack train --data ../shared/data/300w/helen_train --kind 2d --out my2d.npz\n"
+                              "  aamtrack train --data faces/ --kind 3d --candide candide3.wfm --out my3d.npz\n"
+                              "  aamtrack run clip.mp4 --model my2d.npz            track with the new model\n\n"
+                              "Without --out the model goes to ./aamtrack_<kind>.npz (never over an existing file,\n"
+                              "so never over a shipped model).",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", required=True, type=Path, help="folder of images + .pts files")
     p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="3D Candide-3 model or 2D 68-point model")
-    p.add_argument("--out", type=Path, help="model file to write (default: models/<kind>.npz in this folder)")
+    p.add_argument("--out", type=Path, help="model file to write (default: aamtrack_<kind>.npz in the current folder, "
+                   "numbered aamtrack_<kind>_2.npz, ... rather than overwrite a file)")
     p.add_argument("--candide", type=Path, help="Candide-3 .wfm file for --kind 3d (default: "
                    "../shared/data/candide3/candide3.wfm next to the project, if present)")
     p.add_argument("--couples", help="couples as FACE_PX:TEX_WIDTH,... coarse to fine (default 32:20,64:32,128:48)")
@@ -46,8 +54,19 @@ def _parse_couples(text: str | None) -> tuple:
     return couples
 
 
+def default_out(kind: str, folder: Path | None = None) -> Path:
+    """``aamtrack_<kind>.npz`` in ``folder`` (default: the current one), numbered ``_2``, ``_3``, ... past existing
+    files: a default can neither overwrite an earlier model nor a shipped one (named ``<kind>.npz``)."""
+    folder = Path.cwd() if folder is None else folder
+    out, n = folder / f"aamtrack_{kind}.npz", 1
+    while out.exists():
+        n += 1
+        out = folder / f"aamtrack_{kind}_{n}.npz"
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
-    out = args.out or Path("models") / f"{args.kind}.npz"
+    out = args.out or default_out(args.kind)
     if out.exists() and out.is_dir():
         raise InputError(f"{out}: is a folder, expected a model file name")
     if not out.parent.exists():

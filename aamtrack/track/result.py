@@ -41,6 +41,8 @@ class FrameResult:
     anim_params, shape_params : 1-D float64, named by ``Model.anim_names`` / ``Model.shape_names``
     vertices : (n_vertices, 2) float64 mesh vertices in pixels (for overlays), NaN where not successful
     confidence : 0..1 from the texture residual
+    reason : why the frame has no result ("no face detected", "low confidence ..."); empty when successful or
+        when not known (the tracker does not fill it yet: ``aamtrack.track.events.annotate`` infers it)
     """
 
     frame: int
@@ -56,6 +58,7 @@ class FrameResult:
     shape_params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     vertices: np.ndarray | None = None
     timings: dict = field(default_factory=dict)
+    reason: str = ""
 
     @property
     def success(self) -> bool:

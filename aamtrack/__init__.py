@@ -3,7 +3,7 @@
 Python API (imported on first use, so ``import aamtrack`` itself loads neither numba nor OpenCV)::
 
     aamtrack.load_model("3d")                      # or "2d", or a path to a model .npz
-    aamtrack.Tracker(model).track(frames)          # a generator of FrameResult
+    aamtrack.Tracker(model).track(frames)          # a generator of FrameResult (frames: aamtrack.Frame)
     aamtrack.track_video("clip.mp4")               # the same for a file, folder or glob, smoothed
 """
 
@@ -18,6 +18,7 @@ _LAZY = {
     "SmoothConfig": "aamtrack.track.smooth",
     "smooth_results": "aamtrack.track.smooth",
     "Model": "aamtrack.model",
+    "Frame": "aamtrack.io.frames",
 }
 
 __all__ = ["__version__", *_LAZY]

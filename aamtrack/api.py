@@ -24,6 +24,7 @@ from .track.smooth import SmoothConfig, smooth_results
 from .track.tracker import Tracker, TrackerConfig
 
 __all__ = ["load_model", "track_video", "Tracker", "TrackerConfig", "SmoothConfig", "FrameResult", "Model"]
+# aamtrack.Frame (index, timestamp, image) is aamtrack.io.frames.Frame, re-exported by __init__
 
 
 def load_model(model: str | os.PathLike | Model = "3d") -> Model:

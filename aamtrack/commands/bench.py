@@ -35,7 +35,7 @@ def _sizes(text: str) -> list[tuple[int, int]]:
         if any(len(s) != 2 or min(s) < 16 for s in sizes):
             raise ValueError
     except ValueError:
-        raise InputError(f"--sizes {text!r}: expected WxH[,WxH...] such as 640x480")
+        raise InputError(f"--sizes {text!r}: expected WxH[,WxH...] such as 640x480") from None
     return sizes
 
 

@@ -185,16 +185,16 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     return summary
 
 
-def _warm_up(tracker: Tracker, notify) -> float:
+def _warm_up(tracker: Tracker, notify, *, after: float = 1.5) -> float:
     """Compile (or load from numba's cache) the kernels before the first frame; if that takes longer than a
-    cache load (1.5 s), ``notify`` says so while it runs (a first run compiles for several seconds)."""
+    cache load (``after`` seconds), ``notify`` says so while it runs (a first run compiles for several seconds)."""
     said = threading.Event()
 
     def say():
         said.set()
         notify("compiling kernels (first run only) ...")
 
-    timer = threading.Timer(1.5, say) if notify is not None else None
+    timer = threading.Timer(after, say) if notify is not None else None
     if timer is not None:
         timer.daemon = True
         timer.start()

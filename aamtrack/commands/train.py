@@ -50,7 +50,7 @@ def _parse_couples(text: str | None) -> tuple:
         if any(len(c) != 2 or c[1] > c[0] or c[1] < 4 for c in couples):
             raise ValueError
     except ValueError:
-        raise InputError(f"--couples {text!r}: expected FACE_PX:TEX_WIDTH pairs with 4 <= TEX_WIDTH <= FACE_PX")
+        raise InputError(f"--couples {text!r}: expected FACE_PX:TEX_WIDTH pairs with 4 <= TEX_WIDTH <= FACE_PX") from None
     return couples
 
 
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         with atomic_write(args.report, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["image", "fit_rms_px"])
-            w.writerows((n, f"{r:.3f}") for n, r in zip(report.names, report.fit_rms_px))
+            w.writerows((n, f"{r:.3f}") for n, r in zip(report.names, report.fit_rms_px, strict=True))
     r = report.fit_rms_px
     print(f"trained {args.kind} model on {len(images)} images in {time.perf_counter() - t0:.1f} s -> {out}\n"
           f"shape fit residual (px): mean {r.mean():.2f}, median {np.median(r):.2f}, max {r.max():.2f}")

@@ -134,7 +134,7 @@ class ReportBuilder:
         plt = require_matplotlib()
         t = np.asarray(self.times, float)
         status = np.asarray(self.status)
-        lost = ~np.isin(status, ("detected", "tracked", "dropped"))
+        lost = ~np.isin(status, ("detected", "tracked"))
         figs = []
 
         def shade(ax):

@@ -14,7 +14,7 @@ def dataset(tmp_path, synth_data):
     images, points = synth_data
     d = tmp_path / "data"
     d.mkdir()
-    for i, (img, pts) in enumerate(zip(images[:12], points[:12])):
+    for i, (img, pts) in enumerate(zip(images[:12], points[:12], strict=True)):
         cv2.imwrite(str(d / f"face{i:02d}.png"), img)
         if i % 2:
             write_pts(d / f"face{i:02d}.pts", pts)

@@ -65,3 +65,20 @@ def test_exception_leaves_nothing(tmp_path):
     assert not list(tmp_path.iterdir())
     with pytest.raises(ValueError, match="closed"):
         writer.write(index_image(1, rng), _result(rng))
+
+
+def test_pose_axes_follow_the_model_rotation():
+    from aamtrack.io.overlay import axes_endpoints, rotation_matrix
+    from aamtrack.mesh.shape_model import rotation_matrix as model_rotation
+
+    angles = (0.3, -0.5, 0.2)
+    assert np.allclose(rotation_matrix(*angles), model_rotation(*angles))  # the kernel's convention
+    rng = np.random.default_rng(SEED)
+    landmarks = np.column_stack([rng.uniform(100, 200, 68), rng.uniform(50, 150, 68)])
+    ends = axes_endpoints(landmarks, np.zeros(3))  # frontal: x right, y up (image y down), z towards the camera
+    half = 0.5 * np.ptp(landmarks[:, 0])
+    assert np.allclose(ends[0], landmarks[30])
+    assert np.allclose(ends[1:] - ends[0], [[half, 0], [0, -half], [0, 0]])
+    ends = axes_endpoints(landmarks, np.array([0.0, 0.0, np.pi / 2]))  # rolled 90 degrees: x points up
+    assert np.allclose(ends[1] - ends[0], [0, -half])
+    assert axes_endpoints(np.full((68, 2), np.nan), np.zeros(3)) is None

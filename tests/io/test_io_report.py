@@ -116,3 +116,31 @@ def test_renders_in_headless_chromium(tmp_path):
     red = ((img[..., 2] > 170) & (img[..., 1] < 80) & (img[..., 0] < 80)).sum()
     assert red > 500, red
     shutil.copy(shot, tmp_path.parent / "report_screenshot.png")  # kept in pytest's tmp folder for a look
+
+
+def test_overlay_video_plays_in_chromium(tmp_path):
+    """The overlay's codec is one a browser decodes (VP8 .webm with the pip OpenCV; H.264 .mp4 elsewhere)."""
+    from aamtrack.io.overlay import OverlayWriter
+
+    browser = _chromium()
+    if browser is None:
+        pytest.skip("no Chromium installed (Debian: apt-get install chromium)")
+    rng = np.random.default_rng(SEED)
+    results, images = _run(rng)
+    with OverlayWriter(tmp_path / "overlay.mp4", 25.0, (320, 240)) as writer:
+        for res, image in zip(results, images, strict=True):
+            writer.write(image, res)
+    if writer.fourcc not in ("avc1", "VP80", "VP90"):
+        pytest.skip(f"this OpenCV has no browser codec (wrote {writer.fourcc}, as its warning says)")
+    page = tmp_path / "play.html"
+    page.write_text(f"""<!DOCTYPE html><html><body><div id="r">pending</div>
+<video id="v" src="{writer.path.name}" muted preload="auto"></video><script>
+const v = document.getElementById('v'), r = document.getElementById('r');
+v.addEventListener('loadeddata', () => {{ r.textContent = 'PLAYABLE ' + v.videoWidth + 'x' + v.videoHeight; }});
+v.addEventListener('error', () => {{ r.textContent = 'ERROR ' + (v.error && v.error.code); }});
+</script></body></html>""")
+    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+           "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+           "--virtual-time-budget=5000", "--dump-dom", page.as_uri()]
+    dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120).stdout
+    assert "PLAYABLE 320x240" in dom, re.findall(r'<div id="r">[^<]*', dom)

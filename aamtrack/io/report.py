@@ -207,9 +207,11 @@ class ReportBuilder:
                 img = (f'<img alt="frame {s.start}" src="data:image/jpeg;base64,{s.thumbnail}">' if s.thumbnail
                        else '<div class="nothumb">no thumbnail</div>')
                 span = f"frame {s.start}" if s.n_frames == 1 else f"frames {s.start}&ndash;{s.stop}"
+                detail = s.reason if s.kind == "lost" else f"lowest confidence {s.min_confidence:.2f}"
+                count = "1 frame" if s.n_frames == 1 else f"{s.n_frames} frames"
                 parts.append(f'<figure class="{"lost" if s.kind == "lost" else "low"}">{img}<figcaption>'
-                             f"<b>{html.escape(s.kind)}</b>: {span} ({s.n_frames} frames, "
-                             f"{s.start / fps:.2f} s)<br>{html.escape(s.reason)}</figcaption></figure>")
+                             f"<b>{html.escape(s.kind)}</b>: {span} ({count}, at "
+                             f"{s.start / fps:.2f} s)<br>{html.escape(detail)}</figcaption></figure>")
             parts.append("</div>")
         parts.append("</body></html>\n")
         return "\n".join(parts)

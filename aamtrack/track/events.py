@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import re
 from typing import Iterable, Iterator
 
 from .result import FrameResult
@@ -42,6 +43,14 @@ def loss_reason(res: FrameResult, *, min_confidence: float = 0.5) -> str:
     return "fit rejected: landmarks outside the frame or an implausible jump"
 
 
+def _kind(reason: str) -> str:
+    return re.sub(r"\d+(\.\d+)?", "#", reason)
+
+
+def _frames(n: int) -> str:
+    return f"{n} frame" if n == 1 else f"{n} frames"
+
+
 def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> Iterator[FrameResult]:
     """Yield ``results`` with ``reason`` filled on frames without a result, logging the track's events.
 
@@ -60,10 +69,10 @@ def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> 
                 if not tracked_before:
                     log.info("frame %d: face detected (confidence %.2f)", res.frame, res.confidence)
                 else:
-                    gap = f" after {res.frame - lost_since} frames without a face" if lost_since is not None else ""
+                    gap = f" after {_frames(res.frame - lost_since)} lost" if lost_since is not None else ""
                     log.info("frame %d: face re-detected%s (confidence %.2f)", res.frame, gap, res.confidence)
             elif lost_since is not None:
-                log.info("frame %d: tracking again after %d frames", res.frame, res.frame - lost_since)
+                log.info("frame %d: tracking again after %s lost", res.frame, _frames(res.frame - lost_since))
             tracked_before = True
             lost_since = last_reason = None
             yield res
@@ -74,7 +83,7 @@ def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> 
             continue
         if lost_since is None:
             lost_since = res.frame
-        if reason != last_reason:
+        if _kind(reason) != last_reason:  # a new kind of reason; not every new confidence value
             log.info("frame %d: %s: %s", res.frame, "lost" if tracked_before else "no track", reason)
-            last_reason = reason
+            last_reason = _kind(reason)
         yield dataclasses.replace(res, reason=reason) if reason != res.reason else res

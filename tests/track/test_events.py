@@ -36,5 +36,19 @@ def test_annotate_fills_reasons_and_logs_changes_only(caplog):
         "frame 0: face detected (confidence 0.90)",
         "frame 2: lost: low confidence 0.20 < 0.50",
         "frame 3: lost: no face detected",           # a new reason is logged, a repeated one is not
-        "frame 6: face re-detected after 4 frames without a face (confidence 0.90)",
+        "frame 6: face re-detected after 4 frames lost (confidence 0.90)",
+    ]
+
+
+def test_a_run_of_low_confidence_losses_is_logged_once(caplog):
+    stream = [_r(0, "detected"), _r(1, "lost", 0.3), _r(2, "lost", 0.2), _r(3, "tracked"), _r(4, "lost", 0.1),
+              _r(5, "detected")]
+    with caplog.at_level(logging.INFO, logger="aamtrack.track"):
+        list(annotate(stream))
+    assert [r.getMessage() for r in caplog.records] == [
+        "frame 0: face detected (confidence 0.90)",
+        "frame 1: lost: low confidence 0.30 < 0.50",
+        "frame 3: tracking again after 2 frames lost",
+        "frame 4: lost: low confidence 0.10 < 0.50",
+        "frame 5: face re-detected after 1 frame lost (confidence 0.90)",
     ]

@@ -1,4 +1,6 @@
-"""Overlay video: each input frame with the fitted mesh and the 68 landmarks drawn on it, written atomically.
+"""Overlay video: each input frame with the fitted mesh, the 68 landmarks, the head's axes, the frame number,
+status and confidence drawn on it (a full-width banner on frames without a result), written atomically in a
+codec browsers play where OpenCV has one (:func:`codec_attempts`).
 
 Frames are written to a temporary name that keeps the video extension (``.name.<random>.tmp.mp4``, so OpenCV
 picks the container from it) and renamed to the destination on ``close()``.

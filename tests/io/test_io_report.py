@@ -18,8 +18,6 @@ from aamtrack.errors import OutputError
 from aamtrack.io.report import ReportBuilder, require_matplotlib
 from aamtrack.track.result import FrameResult
 
-pytest.importorskip("matplotlib", reason="report.html needs the plot extra (matplotlib)")
-
 ANIM = ("jaw_drop", "lip_stretcher")
 N = 60
 LOST = range(20, 26)       # six frames without a face
@@ -52,6 +50,7 @@ def _run(rng):
 
 
 def _report(tmp_path):
+    pytest.importorskip("matplotlib", reason="report.html needs the plot extra (matplotlib)")
     rng = np.random.default_rng(SEED)
     builder = ReportBuilder(model_kind="3d", anim_names=ANIM, min_confidence=0.5)
     for res, image in zip(*_run(rng), strict=True):

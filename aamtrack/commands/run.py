@@ -102,9 +102,9 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     source = open_frames(input_, fps=fps)
     model = load_model(model_path)
     tracker = Tracker(model)
-    t_warm = _warm_up(tracker, notify)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
+    t_warm = _warm_up(tracker, notify)
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = Path(source.name).stem if Path(source.name).suffix else Path(source.name).name
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
@@ -114,8 +114,10 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
     frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
     t_first = None
-    rep = ReportBuilder(model_kind=sm.kind, anim_names=sm.coef_names if is3d else (),
-                        min_confidence=tracker.config.min_confidence, edges=mesh_edges(sm.triangles)) if report else None
+    rep = None
+    if report:
+        rep = ReportBuilder(model_kind=sm.kind, anim_names=sm.coef_names if is3d else (),
+                            min_confidence=tracker.config.min_confidence, edges=mesh_edges(sm.triangles))
     pts_dir = out_dir / f"{stem}_pts"
     with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
                                    shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:

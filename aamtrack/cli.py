@@ -34,11 +34,27 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} -h')\n")
 
 
+DESCRIPTION = """Track faces in recorded video with Active Appearance Models (2D, or 3D Candide-3), and transfer the
+tracked motion to other 3D faces."""
+
+EPILOG = """examples:
+  aamtrack run samples/cap12_first12s.mp4 --out-dir out/sample     track the bundled sample: CSV + JSON summary
+  aamtrack run clip.mp4 --video --report     also an overlay video and report.html
+  aamtrack -v run clip.mp4                   log detections, re-detections and why frames were lost
+  aamtrack bench clip.mp4                    per-stage timings at 320x240, 640x480, 1280x720
+  aamtrack train --data faces/ --kind 2d --out my2d.npz
+  aamtrack transfer out/sample/cap12_first12s.csv face.obj --out anim.npz
+
+'aamtrack COMMAND --help' describes each command's options and outputs."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="aamtrack", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="aamtrack", description=DESCRIPTION, epilog=EPILOG,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"aamtrack {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true",
-                        help="log progress details to stderr, with FFmpeg's and OpenCV's own warnings")
+                        help="log details to stderr: input, face detections and re-detections, why frames were "
+                             "lost, files written, and FFmpeg's and OpenCV's own warnings")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:

@@ -38,12 +38,16 @@ class Features:
     kind : "intensity" (C = 1: grey levels, local contrast normalised over ``lcn_sigma`` pixels, 0 = none; the
         warped texture is then z-normalised) or "gradient" (C = 2: edge-structure gradient orientations,
         damped by ``soft`` * mean |g| + ``eps`` grey levels; turned into the face's axes after warping).
+    blur : Gaussian sigma (pixels of the level) applied to the gradient channels: the texture map samples the
+        level every 1.5 to 3 pixels, and pooling the orientations over about that span (as HOG's cells do)
+        keeps the samples from aliasing.
     """
 
     kind: str = "gradient"
     lcn_sigma: float = 8.0
     soft: float = 1.0
     eps: float = 1.0
+    blur: float = 0.0
 
     def __post_init__(self):
         if self.kind not in FEATURE_KINDS:
@@ -62,7 +66,11 @@ class Features:
         if self.kind == "intensity":
             out = local_contrast(img, self.lcn_sigma) if self.lcn_sigma > 0 else img
             return np.ascontiguousarray(out, dtype=np.float32)[None]
-        return gradient_features(img, soft=self.soft, eps=self.eps)
+        out = gradient_features(img, soft=self.soft, eps=self.eps)
+        if self.blur > 0:
+            for ch in out:
+                cv2.GaussianBlur(ch, (0, 0), self.blur, dst=ch, borderType=cv2.BORDER_REPLICATE)
+        return out
 
 
 def to_gray32(image: np.ndarray) -> np.ndarray:

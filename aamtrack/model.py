@@ -139,7 +139,7 @@ def save_model(model: Model, path: str | Path) -> None:
         "shape_names": list(model.shape.shape_names),
         "coef_names": list(model.shape.coef_names),
         "features": {"kind": model.features.kind, "lcn_sigma": model.features.lcn_sigma,
-                     "soft": model.features.soft, "eps": model.features.eps},
+                     "soft": model.features.soft, "eps": model.features.eps, "blur": model.features.blur},
         "textures": [list(t.frame.shape) for t in model.textures],
         "couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.couples],
         "validator": {"names": list(v.names), "bias": v.bias},
@@ -312,8 +312,10 @@ def _read(c: _Checker, meta: dict) -> Model:
     f = meta["features"]
     if f.get("kind") not in FEATURE_KINDS:
         c.fail(f"unknown feature kind {f.get('kind')!r}")
-    features = Features(kind=f["kind"], lcn_sigma=float(f["lcn_sigma"]), soft=float(f["soft"]), eps=float(f["eps"]))
-    if not all(np.isfinite(v) and v >= 0 for v in (features.lcn_sigma, features.soft, features.eps)):
+    features = Features(kind=f["kind"], lcn_sigma=float(f["lcn_sigma"]), soft=float(f["soft"]), eps=float(f["eps"]),
+                        blur=float(f["blur"]))
+    if not all(np.isfinite(v) and 0 <= v <= 100 for v in (features.lcn_sigma, features.soft, features.eps,
+                                                          features.blur)):
         c.fail("negative or non-finite feature settings")
     textures = tuple(_texture(c, i, shp, shape.n_vertices, features.channels) for i, shp in enumerate(meta["textures"]))
     n_params = shape.n_q + shape.n_shape

@@ -17,7 +17,11 @@ from ..track.benchmark import format_table, run_bench
 def register(sub) -> None:
     p = sub.add_parser("bench", help="time the tracker per stage at several resolutions",
                        description="Median, p90 and max per-frame times (decode, detect, pyramid, search, output), "
-                                   "tracking and end-to-end fps; numba warm-up reported apart.")
+                                   "tracking and end-to-end fps; numba warm-up reported apart.",
+                       epilog="examples:\n"
+                              "  OMP_NUM_THREADS=1 aamtrack bench samples/cap12_first12s.mp4\n"
+                              "  aamtrack bench clip.mp4 --model my2d.npz --sizes 640x480 --frames 100 --json b.json",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="video file or folder of frames")
     p.add_argument("--model", type=Path, action="append", help="model file (repeatable; default: both shipped)")
     p.add_argument("--sizes", default="320x240,640x480,1280x720", help="resolutions WxH, comma-separated")

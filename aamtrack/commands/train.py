@@ -25,10 +25,18 @@ from ..train.pipeline import TrainConfig, train_model
 def register(sub) -> None:
     p = sub.add_parser("train", help="train a 2D or 3D model from annotated images",
                        description="Learn shape, mean texture and update matrices from a folder of images, each "
-                                   "with an iBUG .pts file (68 points) of the same name.")
+                                   "with an iBUG .pts file (68 points) of the same name.",
+                       epilog="examples:\n"
+                              "  aamtrack train --data ../shared/data/300w/helen_train --kind 2d --out my2d.npz\n"
+                              "  aamtrack train --data faces/ --kind 3d --candide candide3.wfm --out my3d.npz\n"
+                              "  aamtrack run clip.mp4 --model my2d.npz            track with the new model\n\n"
+                              "Without --out the model goes to ./aamtrack_<kind>.npz (never over an existing file,\n"
+                              "so never over a shipped model).",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", required=True, type=Path, help="folder of images + .pts files")
     p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="3D Candide-3 model or 2D 68-point model")
-    p.add_argument("--out", type=Path, help="model file to write (default: models/<kind>.npz in this folder)")
+    p.add_argument("--out", type=Path, help="model file to write (default: aamtrack_<kind>.npz in the current folder, "
+                   "numbered aamtrack_<kind>_2.npz, ... rather than overwrite a file)")
     p.add_argument("--candide", type=Path, help="Candide-3 .wfm file for --kind 3d (default: "
                    "../shared/data/candide3/candide3.wfm next to the project, if present)")
     p.add_argument("--couples", help="couples as FACE_PX:TEX_WIDTH,... coarse to fine (default 32:20,64:32,128:48)")
@@ -51,10 +59,10 @@ def _parse_couples(text: str | None) -> tuple:
 
 def model_bytes_bound(config: TrainConfig) -> int:
     """An upper bound of a model file's size: every array uncompressed (a texture frame has fewer than
-    tex_width^2 pixels, a couple fewer than 64 parameters; 8 bytes a number; the person couple counted like
-    one more couple). The shipped 3D model's arrays take 0.64 MB; the bound for its couples is 5.0 MB."""
-    n_px = sum(tex * tex for _, tex in config.couples) + max(tex for _, tex in config.couples) ** 2
-    per_px = 8 * (2 + 3 + 3 + 1 + config.n_appearance + 64)  # pix_xy, pix_vid, pix_bary, mean, appearance, U
+    tex_width^2 pixels of at most 2 feature channels, a couple fewer than 64 parameters, each stage of its
+    cascade (or its update matrix) one number per parameter and texture value; 8 bytes a number)."""
+    n_px = sum(tex * tex for _, tex in config.couples)
+    per_px = 8 * (2 + 3 + 3 + 2 * (1 + config.n_appearance + 64 * max(config.n_stages, 1)))
     return n_px * per_px + (1 << 20)  # + mesh, maps and metadata
 
 
@@ -69,8 +77,19 @@ def check_free_space(folder: Path, need: int) -> None:
                           f"{need / 1e6:.1f} MB")
 
 
+def default_out(kind: str, folder: Path | None = None) -> Path:
+    """``aamtrack_<kind>.npz`` in ``folder`` (default: the current one), numbered ``_2``, ``_3``, ... past existing
+    files: a default can neither overwrite an earlier model nor a shipped one (named ``<kind>.npz``)."""
+    folder = Path.cwd() if folder is None else folder
+    out, n = folder / f"aamtrack_{kind}.npz", 1
+    while out.exists():
+        n += 1
+        out = folder / f"aamtrack_{kind}_{n}.npz"
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
-    out = args.out or Path("models") / f"{args.kind}.npz"
+    out = args.out or default_out(args.kind)
     if out.is_dir():
         raise InputError(f"{display_name(out)}: is a folder, expected a model file name")
     config = TrainConfig(couples=_parse_couples(args.couples))

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._kernels.warp import _project
+from .._kernels.warp import _project, _rotation
 from .landmarks import similarity_fit
 
 POSE_NAMES = ("rx", "ry", "rz", "scale", "tx", "ty")
@@ -136,3 +136,10 @@ def initial_pose(sm: ShapeModel, points: np.ndarray, shape_params=None) -> np.nd
     q[3] = s
     q[4], q[5] = t[0], -t[1]
     return q
+
+
+def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
+    """(3, 3) float64 R = Rz @ Ry @ Rx, the model's rotation (the kernels' own ``_rotation``)."""
+    R = np.empty((3, 3))
+    _rotation(float(rx), float(ry), float(rz), R)
+    return R

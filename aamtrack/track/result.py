@@ -46,6 +46,7 @@ class FrameResult:
     anim_params, shape_params : 1-D float64, named by the shape model's ``coef_names`` / ``shape_names``
     vertices : (n_vertices, 2) float64 mesh vertices in pixels (for overlays), NaN where not successful
     confidence : 0..1, the model's fit validator (``Model.validator``)
+    reason : why the frame has no result ("no face detected", "low confidence ..."); empty when successful
     """
 
     frame: int
@@ -61,6 +62,7 @@ class FrameResult:
     shape_params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     vertices: np.ndarray | None = None
     timings: dict = field(default_factory=dict)
+    reason: str = ""
 
     @property
     def success(self) -> bool:

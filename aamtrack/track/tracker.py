@@ -127,16 +127,34 @@ class Tracker:
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
         return np.r_[q, sigma]
 
+    def loss_reason(self, res: FitResult, shape: tuple, p_before: np.ndarray | None) -> str:
+        """Why a fit is not accepted ("" when it is): the validator's confidence, the landmarks in the frame,
+        and, from the previous frame's ``p_before``, a turn or rescale no head makes in one frame."""
+        cfg = self.config
+        if res.confidence < cfg.min_confidence:
+            return f"low confidence {res.confidence:.2f} < {cfg.min_confidence:.2f}"
+        inside = self._inside(res.landmarks, shape)
+        if inside < cfg.min_inside:
+            return f"{inside:.0%} of the landmarks inside the frame"
+        if p_before is not None:
+            turn = float(np.abs(res.p[:3] - p_before[:3]).max())
+            if turn > cfg.max_turn:
+                return f"turned {turn:.2f} rad in one frame"
+            rescale = abs(float(np.log(res.p[3] / p_before[3])))
+            if rescale > cfg.max_rescale:
+                return f"rescaled by {rescale:.2f} (log) in one frame"
+        return ""
+
     def _inside(self, pts: np.ndarray, shape: tuple) -> float:
         H, W = shape
         ok = (pts[:, 0] >= 0) & (pts[:, 0] < W) & (pts[:, 1] >= 0) & (pts[:, 1] < H)
         return float(ok.mean())
 
-    def _result(self, frame, status, res: FitResult | None, timings) -> FrameResult:
+    def _result(self, frame, status, res: FitResult | None, timings, reason: str = "") -> FrameResult:
         conf = 0.0 if res is None else res.confidence
         if res is None or status not in ("detected", "tracked"):
             return FrameResult(frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
-                               timings=timings)
+                               timings=timings, reason=reason)
         sm = self.model.shape
         q, sigma = res.p[:sm.n_q], res.p[sm.n_q:]
         is3d = sm.kind == "3d"
@@ -172,7 +190,7 @@ class Tracker:
                 box = self.detector.detect(image)
                 timings["detect"] = time.perf_counter() - t0
                 if box is None:
-                    yield self._result(frame, "lost", None, timings)
+                    yield self._result(frame, "lost", None, timings, "no face detected")
                     continue
                 status = "detected"
                 starts = self.detection_starts(box, shape_params)
@@ -187,11 +205,8 @@ class Tracker:
             res, t_pyr = self.fit_roi(image, starts, shape_params, first=first)
             timings["pyramid"] = t_pyr
             timings["search"] = time.perf_counter() - t1 - t_pyr
-            ok = res.confidence >= cfg.min_confidence and self._inside(res.landmarks, image.shape[:2]) >= cfg.min_inside
-            if ok and status == "tracked":
-                ok = (np.abs(res.p[:3] - p[:3]).max() <= cfg.max_turn
-                      and abs(np.log(res.p[3] / p[3])) <= cfg.max_rescale)
-            if ok:
+            reason = self.loss_reason(res, image.shape[:2], p if status == "tracked" else None)
+            if not reason:
                 if estimate and shape_params is None:
                     sigma_samples.append(res.p[n_q:].copy())
                     if len(sigma_samples) >= cfg.sigma_frames:
@@ -201,4 +216,4 @@ class Tracker:
                 yield self._result(frame, status, res, timings)
             else:
                 p = p_prev = None
-                yield self._result(frame, "lost", res, timings)
+                yield self._result(frame, "lost", res, timings, reason)

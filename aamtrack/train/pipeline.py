@@ -65,6 +65,7 @@ class TrainConfig:
     lcn_sigma: float = 8.0
     soft: float = 1.0
     eps: float = 1.0
+    blur: float = 1.5
     update: str = "cascade"
     n_stages: int = 3
     n_starts: int = 6
@@ -87,11 +88,11 @@ class TrainConfig:
                 raise ValueError(f"couple ({face_px}, {tex}): texture finer than the face's pixels")
         if self.update not in ("cascade", "jacobian"):
             raise ValueError(f"update {self.update!r}: expected 'cascade' or 'jacobian'")
-        Features(self.features, self.lcn_sigma, self.soft, self.eps)  # validates the kind
+        Features(self.features, self.lcn_sigma, self.soft, self.eps, self.blur)  # validates the kind
 
     @property
     def feature_spec(self) -> Features:
-        return Features(self.features, self.lcn_sigma, self.soft, self.eps)
+        return Features(self.features, self.lcn_sigma, self.soft, self.eps, self.blur)
 
 
 @dataclass(frozen=True)
@@ -194,8 +195,8 @@ def _augment(images, points, mirror: bool):
     return gray + flipped, np.concatenate([points, mpts])
 
 
-def _cascade_couples(feats, factors, P, owner_group, starts, owner, sm, textures, frames, free_all, lo, hi,
-                     config, progress, record, rng) -> tuple[list[Couple], np.ndarray, np.ndarray]:
+def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, textures, frames, free_all, lo,
+                     hi, config, progress, record, rng) -> tuple[list[Couple], np.ndarray, np.ndarray]:
     """Learn every couple's cascade, coarse to fine, carrying the starts along. Each finer couple also learns
     from fresh tracking-like starts (between frames the tracker skips the coarsest couple, so a finer couple
     must handle a frame's motion itself, not only what the coarser couples leave). Returns (couples, final
@@ -223,7 +224,10 @@ def _cascade_couples(feats, factors, P, owner_group, starts, owner, sm, textures
             Pc = compose_all(Pc, free, E @ R.T.astype(np.float64) + b, lo, hi)
             Rs.append(R)
             bs.append(b)
-            record.append({"couple": k, "stage": s, "alpha": alpha})
+            err = nme(_landmarks(sm, basis, Pc[:len(starts)]), points[owner[:len(starts)]])
+            record.append({"couple": k, "stage": s, "alpha": alpha, "train_nme_median": float(np.median(err))})
+            log.info("couple %d stage %d: ridge %g, training starts' median NME %.4f", k, s, alpha,
+                     record[-1]["train_nme_median"])
         couples.append(Couple(float(face_px), k, free.copy(), np.stack(Rs), np.stack(bs),
                               np.zeros((len(free), 0), np.float32), np.zeros((0, 0)), np.zeros(0)))
     return couples, Pc, owner
@@ -343,7 +347,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     starts, owner = perturbed_starts(P, free_all, det_deltas, coefficient_spreads(sm), width, lo, hi,
                                      n_per=config.n_starts, rng=rng)
     if config.update == "cascade":
-        couples, Pfinal, owner = _cascade_couples(feats, factors, P, owner_group, starts, owner, sm, textures,
+        couples, Pfinal, owner = _cascade_couples(feats, factors, P, pts, owner_group, starts, owner, sm, textures,
                                                   frames, free_all, lo, hi, config, progress, record, rng)
     else:
         couples = _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress)

@@ -83,7 +83,8 @@ def test_file_name_that_is_not_utf8(tmp_path, video, model_file, capsys):
     assert run(os.fsdecode(src), "--model", model_file, "--video") == 0
     out = os.path.join(folder, b"caf\xe9 \xff_aamtrack")
     names = sorted(os.listdir(out))
-    assert names == [b"caf\xe9 \xff.csv", b"caf\xe9 \xff.json", b"caf\xe9 \xff_overlay.mp4"]
+    assert names[:2] == [b"caf\xe9 \xff.csv", b"caf\xe9 \xff.json"] and len(names) == 3
+    assert names[2].startswith(b"caf\xe9 \xff_overlay.")  # .webm, or .mp4 where OpenCV has H.264
     summary = json.loads(open(os.path.join(out, b"caf\xe9 \xff.json"), "rb").read())
     assert summary["frames_read"] == N and "\\xe9" in summary["input"]  # shown escaped in the summary
     assert "caf\\xe9 \\xff.csv" in capsys.readouterr().out
@@ -170,7 +171,8 @@ def test_overlay_on_a_full_tmpfs_leaves_nothing(tmp_path, video, model_file, cap
         code = run(video, "--model", model_file, "--out-dir", out, "--video")
         left = files_below(out)
     assert code == 1
-    one_error_line(capsys, "clip_overlay.mp4", "could not be written completely")
+    err = capsys.readouterr().err.strip().splitlines()  # the CSV or the overlay fills the disk first
+    assert len(err) == 1 and ("no space left" in err[0] or "could not be written completely" in err[0]), err
     assert left == []
 
 
@@ -196,7 +198,7 @@ def test_overlay_that_does_not_hold_every_frame_is_refused(tmp_path, video, mode
     monkeypatch.setattr(cv2, "VideoWriter", Forgetful)
     out = tmp_path / "out"
     assert run(video, "--model", model_file, "--out-dir", out, "--video") == 1
-    one_error_line(capsys, "clip_overlay.mp4", "3 of 8 frames")
+    one_error_line(capsys, "clip_overlay.", "3 of 8 frames")
     assert not out.exists()
 
 

@@ -165,5 +165,18 @@ def test_too_little_disk_space_fails_before_training(tmp_path, dataset, capsys, 
     monkeypatch.setattr("aamtrack.commands.train.train_model", lambda *a, **kw: pytest.fail("trained"))
     out = tmp_path / "m.npz"
     assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
-    _one_line_error(capsys, "0.3 MB free", "may need up to 5.0 MB")
+    _one_line_error(capsys, "0.3 MB free", "may need up to")
     assert not out.exists()
+
+
+def test_without_out_writes_a_new_file_in_the_current_folder(tmp_path, dataset, capsys, monkeypatch):
+    work = tmp_path / "work"
+    (work / "models").mkdir(parents=True)
+    shipped = work / "models" / "2d.npz"  # as in the repository root: the old default target
+    shipped.write_bytes(b"shipped")
+    (work / "aamtrack_2d.npz").write_bytes(b"an earlier model")
+    monkeypatch.chdir(work)
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--couples", "32:16,64:24"]) == 0
+    assert shipped.read_bytes() == b"shipped" and (work / "aamtrack_2d.npz").read_bytes() == b"an earlier model"
+    assert load_model(work / "aamtrack_2d_2.npz").kind == "2d"  # numbered past the existing file
+    assert "aamtrack_2d_2.npz" in capsys.readouterr().out

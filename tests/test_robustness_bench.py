@@ -218,6 +218,7 @@ def test_score_video_with_a_gap():
     assert s["n_face"] == 4 and s["n_blank"] == 2
     assert s["tracked"] == pytest.approx(0.5)  # frames 0 and 5 of the 4 face frames
     assert s["nme"] == pytest.approx(0.05)
+    assert s["bias_px"] == pytest.approx([0.5, 0.0])  # frames 0 and 5 only
     assert s["blank_tracked"] == 1  # frame 2
     assert s["resume"] == 1  # frame 4 lost, frame 5 tracked
     never = rb.score_video(np.array([True, True, False, False, False, False]), landmarks, ref, is_face)
@@ -233,6 +234,7 @@ def test_score_stills():
     assert s["n_images"] == 3 and s["n_fitted"] == 2
     assert s["good"] == pytest.approx(1 / 3)  # 0.05 <= 0.08; 0.10 and the unfitted one are not
     assert s["nme"] == pytest.approx(0.075)
+    assert s["bias_px"] == pytest.approx([0.75, 0.0])
 
 
 def test_judge_goals():

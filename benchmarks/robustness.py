@@ -37,9 +37,12 @@ errors are measured in units of 30 px: one pixel there is 0.033. Points follow O
 centres at integer coordinates); mirroring maps x to w - 1 - x. The JSON also gives ``bias_px``, the mean signed
 (x, y) error over the tracked points: a shift the tracker shares with its training labels stays the same under a
 mirror, while one of the labels alone (a half-pixel convention) turns around (helen_test's crops were resized
-from 300-W labels: at most about half a pixel, 0.008 NME at helen's 118 px between the eyes). Measured before
-this script was committed, 3D model: clean x bias +0.2 px on both sets, mirrored +1.3 px on cap12 (400 frames)
-and +3.0 px on helen_test (120 images), about 0.02 of the eye distance: more than a pixel convention explains.
+from 300-W labels: under half a pixel by the crop arithmetic, 0.008 NME at helen's 118 px between the eyes).
+Measured with the shipped 3D model (full run): mean x error +0.2 px clean, +1.4 px mirrored on cap12; -0.1 px
+clean, +3.4 px mirrored on helen_test (2D: +3.5 px), the same on every group of points (jaw, brows, nose, eyes,
+mouth: +2.8 to +3.8 px, 150 images): a whole-face shift of about 0.02 of the eye distance that a pixel
+convention cannot explain, likely learned from a one-sided training set (helen_test's labelled nose bridge sits
+on average 1.5 px right of the eye-corner midpoint), which mirrored training data (issue 9 item 2) should remove.
 The clean variant always runs (the differences need it).
 ``--limit N`` takes the first N video frames and the first N stills, for a quick look.
 """

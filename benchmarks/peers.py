@@ -100,7 +100,7 @@ STILLS = "300w/helen_test"
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
 
-from _common import machine_name  # noqa: E402  (re-exported: accuracy.py imports it from here)
+from _common import machine_name  # noqa: E402
 from peer_runners import (  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
     PeerRun,
     PeerUnavailable,

@@ -72,6 +72,7 @@ for _path in (str(REPO), str(Path(__file__).resolve().parent)):
         sys.path.insert(0, _path)
 
 from _common import machine_name  # noqa: E402
+from aamtrack.mesh.landmarks import IBUG_MIRROR  # noqa: E402
 from aamtrack.metrics import eye_distance, nme  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
@@ -81,19 +82,6 @@ FPS = 25.0
 #: 8 minutes of CPU on one core (a variant the detector cannot find runs Haar on every frame, ~35 ms each);
 #: ``--frames N`` takes the first N for a shorter run.
 VIDEO_FRAMES = 0
-
-#: iBUG-68 left/right permutation (0-based): after a horizontal flip, point i of the mirrored face is point
-#: IBUG_MIRROR[i] of the original (jaw 0..16 reversed, brows 17..26 reversed, nose bridge kept, nostrils 31..35
-#: reversed, eyes 36..41 <-> 45..42 / 47..46, mouth corners 48 <-> 54, 60 <-> 64, middles 51, 57, 62, 66 kept).
-IBUG_MIRROR = np.array(
-    list(range(16, -1, -1))                                     # jaw
-    + list(range(26, 16, -1))                                   # brows
-    + [27, 28, 29, 30]                                          # nose bridge
-    + [35, 34, 33, 32, 31]                                      # nostrils
-    + [45, 44, 43, 42, 47, 46]                                  # right eye <- left eye
-    + [39, 38, 37, 36, 41, 40]                                  # left eye <- right eye
-    + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55]          # outer lip
-    + [64, 63, 62, 61, 60, 67, 66, 65])                         # inner lip
 
 DARK_GAINS = (0.55, 0.25, 0.40)  # B, G, R
 CONTRAST = 0.3

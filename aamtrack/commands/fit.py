@@ -4,7 +4,6 @@ OpenFace's image tool does for stills; one CSV row per image, a JSON summary, op
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -12,16 +11,16 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ..errors import InputError
-from ..io.atomic import temporary_path
+from ..io.atomic import OutputSet
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import ImageFrames, open_frames
+from ..io.frames import ImageFrames, display_name, open_frames
 from ..io.pts import write_pts
 from ..io.summary import write_summary_json
 from ..model import load_model
 from ..models import default_model_path
 from ..track.replay import ReplayFrame
 from ..track.tracker import Tracker
-from .run import output_dir
+from .run import output_base, output_dir
 
 EXAMPLES = """examples:
   aamtrack fit photo.jpg
@@ -46,36 +45,33 @@ def register(sub) -> None:
 
 
 def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = False, progress: bool = True) -> dict:
-    """Fit each image of ``input_`` and write the outputs; returns the summary. Every output appears complete
-    or not at all."""
+    """Fit each image of ``input_`` and write the outputs; returns the summary. The input and the output folder
+    are checked before the work, and all outputs are committed together at the end (``io.atomic.OutputSet``)."""
     t_start = time.perf_counter()
     source = open_frames(input_)
     if not isinstance(source, ImageFrames):
         source.close()
-        raise InputError(f"{input_}: a video; 'aamtrack fit' takes images (track videos with 'aamtrack run')")
-    model = load_model(model_path)
-    tracker = Tracker(model)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    src = Path(input_)
-    stem = src.stem if src.is_file() else (src.name if src.is_dir() else "fit")
-    csv_path, json_path, pts_dir = out_dir / f"{stem}.csv", out_dir / f"{stem}.json", out_dir / f"{stem}_pts"
-    pts_tmp = temporary_path(pts_dir) if pts else None
-    if pts_tmp is not None:
-        pts_tmp.mkdir()
-    sm = model.shape
-    is3d = sm.kind == "3d"
-    counts = dict(images=0, fitted=0, rejected=0, no_face=0, unreadable=0)
-    try:
-        with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
-                                       shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d,
-                                       leading=("file",)) as csv_w:
+        raise InputError(f"{display_name(input_)}: a video; 'aamtrack fit' takes images "
+                         "(track videos with 'aamtrack run')")
+    with source, OutputSet(out_dir) as outputs:
+        model = load_model(model_path)
+        tracker = Tracker(model)
+        outputs.prepare()
+        stem = output_base(input_)[1]
+        folder = outputs.folder
+        csv_path, json_path = folder / f"{stem}.csv", folder / f"{stem}.json"
+        pts_tmp = outputs.folder_output(f"{stem}_pts") if pts else None
+        sm = model.shape
+        is3d = sm.kind == "3d"
+        counts = dict(images=0, fitted=0, rejected=0, no_face=0, unreadable=0)
+        with TrackingCsvWriter(outputs.file(csv_path.name), anim_names=sm.coef_names if is3d else (),
+                               shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d,
+                               leading=("file",)) as csv_w:
             for frame in tqdm(source, total=source.n_frames, unit="img", file=sys.stderr,
-                              disable=not progress or None, desc=stem):
+                              disable=not progress or None, desc=display_name(stem)):
                 path = source.paths[frame.index]
                 res = next(iter(tracker.track([ReplayFrame(frame.index, 0.0, frame.image)])))
-                csv_w.write(res, leading=(path.name,))
+                csv_w.write(res, leading=(display_name(path.name),))
                 counts["images"] += 1
                 if res.status == "unreadable":
                     counts["unreadable"] += 1
@@ -87,17 +83,12 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
                     counts["rejected"] += 1
                 else:
                     counts["no_face"] += 1
-        if pts_tmp is not None:
-            if pts_dir.exists():
-                shutil.rmtree(pts_dir)
-            pts_tmp.rename(pts_dir)
-    finally:
-        if pts_tmp is not None and pts_tmp.exists():
-            shutil.rmtree(pts_tmp, ignore_errors=True)
-    summary = {"input": str(input_), "model": str(model_path), "model_kind": sm.kind, **counts,
-               "wall_s": time.perf_counter() - t_start,
-               "outputs": {"csv": str(csv_path), "summary": str(json_path), **({"pts": str(pts_dir)} if pts else {})}}
-    write_summary_json(json_path, summary)
+        summary = {"input": display_name(input_), "model": str(model_path), "model_kind": sm.kind, **counts,
+                   "wall_s": time.perf_counter() - t_start,
+                   "outputs": {"csv": str(csv_path), "summary": str(json_path),
+                               **({"pts": str(folder / f"{stem}_pts")} if pts else {})}}
+        write_summary_json(outputs.file(json_path.name), summary)
+        outputs.commit()
     return summary
 
 
@@ -106,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     s = fit_images(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir), pts=args.pts)
     print(f"{s['images']} images: {s['fitted']} fitted, {s['rejected']} rejected (low confidence), "
           f"{s['no_face']} without a face found, {s['unreadable']} unreadable -> "
-          + ", ".join(s["outputs"].values()))
+          + ", ".join(display_name(v) for v in s["outputs"].values()))
     if s["fitted"] == 0:
-        print(f"aamtrack fit: warning: no face fitted in {args.input}", file=sys.stderr)
+        print(f"aamtrack fit: warning: no face fitted in {display_name(args.input)}", file=sys.stderr)
     return 0

@@ -90,3 +90,21 @@ def synth_frame(i, image):
     from aamtrack.track.replay import ReplayFrame
 
     return ReplayFrame(i, i / 25.0, image)
+
+
+def test_blank_frames_are_never_tracked(synth_model):
+    """A run of black, grey, uniform-colour and noise frames in the middle of a video: each is reported lost
+    (the validator rejects the fit that starts from the last face), and tracking comes back after the gap."""
+    from aamtrack.track.replay import ReplayFrame
+
+    frames, _ = synth.moving_face_frames(24)
+    h, w = frames[0].shape[:2]
+    rng = np.random.default_rng(3)
+    blanks = [np.zeros((h, w, 3), np.uint8), np.full((h, w, 3), 128, np.uint8),
+              np.full((h, w, 3), (60, 120, 200), np.uint8), rng.integers(0, 256, (h, w, 3), dtype=np.uint8)]
+    video = frames[:8] + blanks * 2 + frames[16:]
+    results = list(Tracker(synth_model).track(ReplayFrame(i, i / 25, f) for i, f in enumerate(video)))
+    assert all(r.success for r in results[:8])
+    assert all(not r.success for r in results[8:16])  # no blank frame reported tracked
+    assert all(r.confidence < 0.5 for r in results[8:16])
+    assert all(r.success for r in results[17:])  # back on the face within a frame of the gap's end

@@ -41,6 +41,7 @@ EPILOG = """examples:
   aamtrack run samples/cap12_first12s.mp4 --out-dir out/sample     track the bundled sample: CSV + JSON summary
   aamtrack run clip.mp4 --video --report     also an overlay video and report.html
   aamtrack -v run clip.mp4                   log detections, re-detections and why frames were lost
+  aamtrack fit photos/ --pts                 fit each still image on its own: CSV with a 'file' column
   aamtrack bench clip.mp4                    per-stage timings at 320x240, 640x480, 1280x720
   aamtrack train --data faces/ --kind 2d --out my2d.npz
   aamtrack transfer out/sample/cap12_first12s.csv face.obj --out anim.npz

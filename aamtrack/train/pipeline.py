@@ -49,8 +49,10 @@ class TrainConfig:
     wider than the face at its image resolution (face_px, see ``aamtrack.imaging``).
     features: "gradient" (edge-structure gradient orientations, ``soft``/``eps``) or "intensity" (grey levels with
     local contrast normalisation over ``lcn_sigma`` pixels).
-    update: "cascade" (learned regression, ``n_stages`` per couple from ``n_starts`` perturbed starts per
-    training image) or "jacobian" (U = -(G^T G + prior)^-1 G^T with step control, the poster's method).
+    update: "cascade" (learned regression, at most ``n_stages`` per couple from ``n_starts`` perturbed starts
+    per training image; a stage that lowers the training starts' median error by less than ``min_gain``
+    (relative) is dropped and ends the couple) or "jacobian" (U = -(G^T G + prior)^-1 G^T with step control,
+    the poster's method).
     mirror: also learn from every training image mirrored (68-point left/right permutation): twice the data.
     n_appearance: appearance modes projected out. pose_only_couples: how many of the coarsest couples update
     the pose only. prior: Gaussian prior on the coefficients of the Jacobian search (``update.prior_weights``).
@@ -68,6 +70,7 @@ class TrainConfig:
     blur: float = 1.5
     update: str = "cascade"
     n_stages: int = 3
+    min_gain: float = 0.01
     n_starts: int = 6
     mirror: bool = True
     n_appearance: int = 8
@@ -216,18 +219,23 @@ def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, 
         free = free_all[free_all < N_POSE] if k < config.pose_only_couples else free_all
         t = textures[k]
         Rs, bs = [], []
+        n0 = len(starts)
+        err_before = float(np.median(nme(_landmarks(sm, basis, Pc[:n0]), points[owner[:n0]])))
         for s in progress(range(config.n_stages), desc=f"cascade couple {k + 1}", unit="stage"):
             E = residual_matrix(feats[k], factors[k], [level_offset(r) for r in factors[k]], Pc, owner, mean3d,
                                 basis, t.mean, t.appearance, frames[k].pix_vid, frames[k].pix_bary, mode)
             Y = inverse_compose(Pc, P[owner], free)
             R, b, alpha = ridge_fit(E, Y, groups=owner_group[owner], rng=np.random.default_rng(config.seed + k))
-            Pc = compose_all(Pc, free, E @ R.T.astype(np.float64) + b, lo, hi)
+            P_next = compose_all(Pc, free, E @ R.T.astype(np.float64) + b, lo, hi)
+            err = float(np.median(nme(_landmarks(sm, basis, P_next[:n0]), points[owner[:n0]])))
+            log.info("couple %d stage %d: ridge %g, training starts' median NME %.4f -> %.4f", k, s, alpha,
+                     err_before, err)
+            if Rs and err > (1.0 - config.min_gain) * err_before:  # a stage that no longer pays is not kept
+                break
+            Pc, err_before = P_next, err
             Rs.append(R)
             bs.append(b)
-            err = nme(_landmarks(sm, basis, Pc[:len(starts)]), points[owner[:len(starts)]])
-            record.append({"couple": k, "stage": s, "alpha": alpha, "train_nme_median": float(np.median(err))})
-            log.info("couple %d stage %d: ridge %g, training starts' median NME %.4f", k, s, alpha,
-                     record[-1]["train_nme_median"])
+            record.append({"couple": k, "stage": s, "alpha": alpha, "train_nme_median": err})
         couples.append(Couple(float(face_px), k, free.copy(), np.stack(Rs), np.stack(bs),
                               np.zeros((len(free), 0), np.float32), np.zeros((0, 0)), np.zeros(0)))
     return couples, Pc, owner

@@ -284,7 +284,7 @@ def load_model(path: str | Path) -> Model:
         raise
     except (OSError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile, zlib.error, EOFError,
             MemoryError, OverflowError) as exc:
-        raise ModelFileError(f"{path}: not a readable aamtrack model ({exc.__class__.__name__}: {exc})")
+        raise ModelFileError(f"{path}: not a readable aamtrack model ({exc.__class__.__name__}: {exc})") from None
 
 
 def _meta(c: _Checker) -> dict:

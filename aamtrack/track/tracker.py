@@ -35,13 +35,14 @@ class TrackerConfig:
     a search that slid onto the background does (the residual alone can miss it on textured backgrounds).
     roi_margin: the search works on a crop of the face's box grown by this share of its size on each side.
     predict: constant-velocity prediction of the pose (damped by ``predict_damping``).
-    sigma_frames: 3D models search the person's shape units with the pose in this many good frames, then
-    hold the median of those estimates (0: search them in every frame). One person per video is assumed:
-    sigma is kept through losses and re-detections.
+    sigma_frames: 3D models search the person's shape units with the pose in this many good frames (fits of
+    confidence at least ``sigma_min_confidence``, so a poor fit of the first frames cannot set the person's
+    shape), then hold the median of those estimates (0: search them in every frame). One person per video is
+    assumed: sigma is kept through losses and re-detections.
     skip_coarse: frames tracked from the previous frame skip this many of the coarsest couples (they give
     the capture range a detection needs; frame-to-frame motion is smaller).
     starts: after a detection the search runs from each (scale factor, vertical shift as a share of the face
-    width, roll in radians) applied to the rough pose from the box, and keeps the fit of lowest cost (Haar
+    width, roll in radians) applied to the rough pose from the box, and keeps the most confident fit (Haar
     boxes vary in scale and in how far down the face they sit, and say nothing of roll)."""
 
     min_confidence: float = 0.5
@@ -52,6 +53,7 @@ class TrackerConfig:
     predict: bool = True
     predict_damping: float = 0.5
     sigma_frames: int = 50
+    sigma_min_confidence: float = 0.9
     skip_coarse: int = 1
     starts: tuple = ((1.0, 0.0, 0.0), (0.9, 0.0, 0.0), (1.1, 0.0, 0.0), (1.0, -0.06, 0.0), (1.0, 0.06, 0.0),
                      (1.0, 0.0, -0.21), (1.0, 0.0, 0.21))
@@ -207,7 +209,7 @@ class Tracker:
             timings["search"] = time.perf_counter() - t1 - t_pyr
             reason = self.loss_reason(res, image.shape[:2], p if status == "tracked" else None)
             if not reason:
-                if estimate and shape_params is None:
+                if estimate and shape_params is None and res.confidence >= cfg.sigma_min_confidence:
                     sigma_samples.append(res.p[n_q:].copy())
                     if len(sigma_samples) >= cfg.sigma_frames:
                         shape_params = np.median(sigma_samples, axis=0)

@@ -80,7 +80,7 @@ class TrainConfig:
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
-    n_pca: int = 12
+    n_pca: int = 20
     n_corrective: int = 12
     validator_images: int = 600
     seed: int = 0

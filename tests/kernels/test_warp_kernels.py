@@ -210,7 +210,7 @@ def test_search_reaches_a_known_minimum():
     mean = tex.copy()
     free = np.array([4, 5])
     G = np.empty((D, 2))
-    for a, j in enumerate(free):
+    for a in range(len(free)):
         qp = q.copy()
         _compose(q, free, np.eye(2)[a] * 0.01, 1.0, np.full(7, -np.inf), np.full(7, np.inf), qp)
         _residual(image, 1.0, shape3d, basis, qp, mean, no_app, vid, bary, 0, *args)

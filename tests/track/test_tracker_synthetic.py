@@ -108,3 +108,29 @@ def test_blank_frames_are_never_tracked(synth_model):
     assert all(not r.success for r in results[8:16])  # no blank frame reported tracked
     assert all(r.confidence < 0.5 for r in results[8:16])
     assert all(r.success for r in results[17:])  # back on the face within a frame of the gap's end
+
+
+def test_loss_reasons(synth_model):
+    """Each loss check on its own: confidence, landmarks inside the frame, one-frame turn and rescale."""
+    from dataclasses import replace
+
+    from aamtrack.track.result import FitResult
+
+    tracker = Tracker(synth_model)
+    cfg = tracker.config
+    p = np.r_[0.0, 0.0, 0.1, 100.0, 110.0, 110.0, np.zeros(synth_model.n_params - 6)]
+    inside = np.column_stack([np.linspace(60, 160, 68), np.linspace(60, 160, 68)])
+    good = FitResult(p=p, landmarks=inside, vertices=inside, residual=0.1, confidence=0.9)
+    assert tracker.loss_reason(good, (220, 220), p) == ""
+    assert "low confidence" in tracker.loss_reason(replace(good, confidence=cfg.min_confidence - 0.01),
+                                                   (220, 220), p)
+    outside = inside.copy()
+    outside[: int(0.4 * 68), 0] = -5.0  # 40% of the points left of the frame
+    assert "inside the frame" in tracker.loss_reason(replace(good, landmarks=outside), (220, 220), p)
+    turned = p.copy()
+    turned[1] += cfg.max_turn + 0.05
+    assert "turned" in tracker.loss_reason(replace(good, p=turned), (220, 220), p)
+    assert tracker.loss_reason(replace(good, p=turned), (220, 220), None) == ""  # no previous frame: no jump test
+    grown = p.copy()
+    grown[3] *= np.exp(cfg.max_rescale + 0.05)
+    assert "rescaled" in tracker.loss_reason(replace(good, p=grown), (220, 220), p)

@@ -23,13 +23,14 @@ from typing import Sequence
 
 import numpy as np
 import scipy.linalg
+from scipy.spatial import cKDTree
 
 from .gauss_grid import GaussGrid, _as_points, gauss_moments, gauss_transform
 
 log = logging.getLogger(__name__)
 
 __all__ = ["GaussGrid", "GmmConfig", "GmmResult", "gauss_moments", "gauss_transform", "l2_cost", "register",
-           "smooth_basis", "thin", "warmup"]
+           "smooth_basis", "surface_normals", "thin", "warmup"]
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,9 @@ class GmmConfig:
     moving points per scale, a random subset (None: all); the result moves every point. tol : Gauss transform truncation: pairs with ``exp(-r^2/h^2) < tol`` are
     skipped (the default, ``exp(-9)``, is a cutoff at 3 h: approximate; None: exact O(n m) sums).
     density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
-    meets a bounded number of others); seed : of that thinning.
+    meets a bounded number of others); seed : of that thinning. pull : ``"normal"`` moves each point only along
+    its surface normal (point-to-plane: where the skin slides along the surface is left to the anchor's prior),
+    ``"isotropic"`` by the whole difference of the means (point-to-point).
     """
 
     scales: tuple = (2.0, 1.0)
@@ -54,6 +57,7 @@ class GmmConfig:
     tol: float | None = float(np.exp(-9.0))
     density: float = 1.5
     seed: int = 0
+    pull: str = "normal"
 
 
 @dataclass(frozen=True)
@@ -150,6 +154,7 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
     GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
     w_self = np.maximum(w_x - 1.0, 0.0)
     bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
+    normals = surface_normals(x, h) if config.pull == "normal" else None
     scene_grid = GaussGrid(scene, h, tol=config.tol)
     w_z, mean_z = np.empty(m), np.empty((m, 3))
     n_iter, residual = 0, float("nan")
@@ -158,6 +163,8 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
         # points with little scene around them (holes, occlusions) pull less
         conf = w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12))
         step = (mean_z - x - bias) * conf[:, None]
+        if normals is not None:  # point-to-plane: only the component along the normal (held for the scale)
+            step = normals * (step * normals).sum(1)[:, None]
         residual = float((step * step).sum(1).mean())
         rhs = l_basis.T @ step / m - w_anchor * (yf - y0_free if basis is None else basis.T @ (yf - y0_free))
         theta = scipy.linalg.cho_solve(factor, rhs)
@@ -202,6 +209,22 @@ def smooth_basis(rest: np.ndarray, free: np.ndarray, n_nodes: int, rng: np.rando
     centres = np.concatenate([rest[~free], rest[idx_free[nodes]]])
     op = rbf_system(centres).operator(rest[idx_free])
     return np.ascontiguousarray(op[:, int((~free).sum()):])
+
+
+def surface_normals(points: np.ndarray, radius: float, *, k: int = 10) -> np.ndarray:
+    """(n, 3) float64 unit normals of a sampled surface: the least-variance direction of each point's ``k`` nearest
+    neighbours (PCA), those farther than ``2 * radius`` left out (sign arbitrary: the steps use ``n n^T``)."""
+    points = np.asarray(points, np.float64)
+    k = min(k, len(points))
+    dist, nb = cKDTree(points).query(points, k=k)
+    dist, nb = dist.reshape(len(points), k), nb.reshape(len(points), k)
+    w = (dist < 2.0 * radius).astype(np.float64)
+    w[:, 0] = 1.0
+    nbp = points[nb]
+    mu = (nbp * w[:, :, None]).sum(1) / w.sum(1)[:, None]
+    local = (nbp - mu[:, None]) * np.sqrt(w)[:, :, None]
+    _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
+    return np.ascontiguousarray(vecs[:, :, 0])
 
 
 def _spatial_order(points: np.ndarray, cell: float) -> np.ndarray:

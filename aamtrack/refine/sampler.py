@@ -31,7 +31,6 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .gauss_grid import GaussGrid
 from .gmm import GmmConfig, register, smooth_basis, thin
 from .rbf import rbf_system
 
@@ -103,7 +102,7 @@ def motion_correlation(motion: np.ndarray, candidates: np.ndarray, neighbours: S
     scale = max(float(norm.max()), 1e-300)
     z = np.where(norm[:, None] > 1e-9 * scale, traj / np.maximum(norm, 1e-300)[:, None], 0.0)
     out = np.zeros(len(candidates))
-    for i, (c, nb) in enumerate(zip(candidates, neighbours)):
+    for i, (c, nb) in enumerate(zip(candidates, neighbours, strict=True)):
         nb = np.asarray(nb, dtype=np.int64)
         nb = nb[nb != c]
         if len(nb):
@@ -144,19 +143,25 @@ class _Surface:
         _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
         self.normals = vecs[:, :, 0]
 
-    def distance(self, query: np.ndarray) -> np.ndarray:
-        _, j = self.tree.query(query)
-        return np.abs(((query - self.points[j]) * self.normals[j]).sum(1))
+    def distance(self, query: np.ndarray, cap: float = np.inf) -> np.ndarray:
+        """Point-to-plane distance to the nearest scan point, truncated at ``cap`` (also where no scan point is
+        within ``cap``: parts of the template the scan does not cover count the same whatever their place)."""
+        dist, j = self.tree.query(query, distance_upper_bound=cap)
+        out = np.full(len(query), cap)
+        ok = np.isfinite(dist)
+        out[ok] = np.abs(((query[ok] - self.points[j[ok]]) * self.normals[j[ok]]).sum(1))
+        return np.minimum(out, cap)
 
 
-def _surface_error(pred: np.ndarray, surfaces: Sequence) -> float:
-    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame)."""
+def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf) -> float:
+    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame), each
+    truncated at ``cap``."""
     if len(pred) < 2:
         return 0.0
-    return float(np.mean([surfaces[t].distance(pred[t]).mean() for t in range(1, len(pred))]))
+    return float(np.mean([surfaces[t].distance(pred[t], cap).mean() for t in range(1, len(pred))]))
 
 
-def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing, config, progress, rng):
+def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, moving, spacing, config, progress, rng):
     """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
     system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
     operator = system.operator(neutral[moving])
@@ -170,7 +175,7 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing
     near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
     out = positions.copy()
     for t in range(1, len(positions)):
-        rigid = _rigid_motion(neutral[moving], scenes[t], positions[t, :n_fixed], rest[:n_fixed], spacing, config)
+        rigid = _rigid_motion(neutral[moving], surfaces[t], positions[t, :n_fixed], rest[:n_fixed], spacing)
         prior = rigid(rest) + near * (positions[t] - rigid(rest))
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
                           bases=bases, anchor_to=prior).controls
@@ -189,22 +194,46 @@ def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np
     return rot, mu_d - mu_s @ rot.T
 
 
-def _rigid_motion(points, scene, landmarks, landmarks0, spacing, config, n_iter: int = 5):
-    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3). Starts from the landmarks' best rigid
-    fit, then EM-like steps of the L2 cost at ``2 * spacing`` (the same steps as :func:`.gmm.register`) move all of
-    the (thinned) F^0 as one rigid body; the face's own motion is a small part of the head."""
+def _rotation(omega: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector omega (3,) (Rodrigues)."""
+    angle = float(np.linalg.norm(omega))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = omega / angle
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * kx @ kx
+
+
+def _rigid_motion(points, surface, landmarks, landmarks0, spacing, n_iter: int = 30):
+    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3).
+
+    Starts from the landmarks' best rigid fit (biased by expressions: the landmarks move with the jaw and lips),
+    then robust point-to-plane ICP of the (thinned) F^0 to the scan (:class:`_Surface`): points without scan within
+    ``4 * spacing`` are left out, and residuals are weighted by Geman-McClure with a scale of 1.5 median absolute
+    residuals, so that the parts of the face that move on their own (jaw, cheeks, lips) give way to the rigid
+    rest (forehead, nose, temples)."""
     rot, shift = _rigid_fit(landmarks0, landmarks, np.ones(len(landmarks0)))
-    h = 2.0 * spacing
-    grid, self_grid = GaussGrid(scene, h, tol=config.gmm.tol), GaussGrid(points, h, tol=config.gmm.tol)
-    w_x, mean_x = np.empty(len(points)), np.empty((len(points), 3))
-    self_grid.moments(points, w_x, mean_x)
-    w_self = np.maximum(w_x - 1.0, 0.0)
-    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - points) / np.maximum(w_self, 1e-9)[:, None], 0.0)
-    w_z, mean_z = np.empty(len(points)), np.empty((len(points), 3))
+    points = np.asarray(points, np.float64)
+    centre = points.mean(0)
     for _ in range(n_iter):
-        x = np.ascontiguousarray(points @ rot.T + shift)
-        grid.moments(x, w_z, mean_z)
-        rot, shift = _rigid_fit(points, mean_z - bias @ rot.T, w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12)))
+        x = points @ rot.T + shift
+        dist, j = surface.tree.query(x, distance_upper_bound=4.0 * spacing)
+        ok = np.isfinite(dist)
+        if ok.sum() < 6:
+            break
+        xo, no = x[ok], surface.normals[j[ok]]
+        r = ((xo - surface.points[j[ok]]) * no).sum(1)
+        scale = max(1.5 * float(np.median(np.abs(r))), 1e-3 * spacing)
+        w = 1.0 / (1.0 + (r / scale) ** 2) ** 2
+        c = centre @ rot.T + shift
+        jac = np.hstack([np.cross(xo - c, no), no])
+        a = jac.T @ (jac * w[:, None]) + 1e-9 * np.eye(6)
+        delta = np.linalg.solve(a, -jac.T @ (w * r))
+        step = _rotation(delta[:3])
+        rot = step @ rot
+        shift = (shift - c) @ step.T + c + delta[3:]
+        if np.linalg.norm(delta[:3]) * 10.0 * spacing + np.linalg.norm(delta[3:]) < 1e-4 * spacing:
+            break
     return lambda p: p @ rot.T + shift
 
 
@@ -244,9 +273,10 @@ def refine_key_points(
     spacing = mesh_spacing(neutral[moving_pool]) if len(moving_pool) > 1 else cell
     scenes = [np.asarray(s, np.float64)[thin(s, cell, rng)] for s in scans]
     radius = config.neighbour_radius * base_spacing
+    cap = 4.0 * base_spacing  # truncation of the scan distance (template parts the scans do not cover)
 
     pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
-    error = _surface_error(pred, surfaces)
+    error = _surface_error(pred, surfaces, cap)
     errors, n_keys = [error], [len(index)]
     log.info("sampler: %d key points, error %.4g", len(index), error)
     for round_ in range(config.max_rounds):
@@ -262,10 +292,10 @@ def refine_key_points(
         near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
         moving = moving_pool if config.whole else moving_pool[np.isfinite(near)]
         if n_frames > 1 and len(moving):
-            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, moving, spacing,
+            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, surfaces, moving, spacing,
                                              config, progress, rng)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
-        new_error = _surface_error(new_pred, surfaces)
+        new_error = _surface_error(new_pred, surfaces, cap)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,
                  len(new_index), len(kept), len(cand), new_error)
         if new_error >= error:

@@ -120,9 +120,9 @@ def test_bad_input(tmp_path, capsys, case):
 
 
 def test_obj_roundtrip(tmp_path):
-    verts = bumpy_surface(5)
-    faces = np.array([[0, 1, 6, -1], [1, 2, 7, 6]])
-    write_obj(tmp_path / "m.obj", verts, faces, np.arange(68) % 25)
+    verts = bumpy_surface(9)
+    faces = np.array([[0, 1, 10, -1], [1, 2, 11, 10]])
+    write_obj(tmp_path / "m.obj", verts, faces, np.arange(68)[::-1])
     mesh = read_obj(tmp_path / "m.obj")
     assert np.abs(mesh.vertices - verts).max() < 1e-5  # 6 significant digits
-    assert np.array_equal(mesh.faces, faces) and np.array_equal(mesh.landmark68, np.arange(68) % 25)
+    assert np.array_equal(mesh.faces, faces) and np.array_equal(mesh.landmark68, np.arange(68)[::-1])

@@ -10,7 +10,9 @@ does so not with a general-purpose optimiser but with a few EM-like steps (see :
 point by the difference of the Gaussian-weighted means of scene and moving set around it (the gradient of E per
 point divided by the local weight) and fits the controls to that by least squares, plus
 ``anchor * mean |Y - Y_prior|^2``, which keeps the controls near a prior where the surface alone cannot place them
-(sliding along a flat patch). Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
+(sliding along a flat patch). With ``pull="normal"`` (the default) only the component of each point's step along
+its surface normal is kept (point-to-plane): where the skin slid along the surface is left to the prior.
+Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
 ``< exp(-9)``); the moving set's own mean is evaluated once per scale; at most ``max_points`` moving points (a random
 subset) steer the steps at each scale, and coarse scales thin both sets. Memory is O(n + m) throughout.
 """
@@ -46,7 +48,8 @@ class GmmConfig:
     density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
     meets a bounded number of others); seed : of that thinning. pull : ``"normal"`` moves each point only along
     its surface normal (point-to-plane: where the skin slides along the surface is left to the anchor's prior),
-    ``"isotropic"`` by the whole difference of the means (point-to-point).
+    ``"isotropic"`` by the whole difference of the means (point-to-point). anchor_tangential : with the normal
+    pull, the anchor holds the controls only along the surface, not along their normals.
     """
 
     scales: tuple = (2.0, 1.0)
@@ -58,6 +61,7 @@ class GmmConfig:
     density: float = 1.5
     seed: int = 0
     pull: str = "normal"
+    anchor_tangential: bool = False
 
 
 @dataclass(frozen=True)
@@ -150,11 +154,10 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
     x = np.ascontiguousarray(x_fixed + l_free @ yf)
     # m_X(x_i) - x_i, the mean of the moving set around x_i (x_i left out: it has weight exactly 1), is a property
     # of the local shape; it is evaluated once per scale and held fixed while the set deforms a little (approximate)
-    w_x, mean_x = np.empty(m), np.empty((m, 3))
-    GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
-    w_self = np.maximum(w_x - 1.0, 0.0)
-    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
-    normals = surface_normals(x, h) if config.pull == "normal" else None
+    bias, normals = _shape(x, h, config)
+    # with the normal pull the anchor holds the controls only along the surface (their normal place is the scan's):
+    # its target is the prior slid along each control's normal (that of the nearest moving point) to the control
+    key_normals = normals[cKDTree(x).query(yf)[1]] if normals is not None and config.anchor_tangential else None
     scene_grid = GaussGrid(scene, h, tol=config.tol)
     w_z, mean_z = np.empty(m), np.empty((m, 3))
     n_iter, residual = 0, float("nan")
@@ -166,7 +169,10 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
         if normals is not None:  # point-to-plane: only the component along the normal (held for the scale)
             step = normals * (step * normals).sum(1)[:, None]
         residual = float((step * step).sum(1).mean())
-        rhs = l_basis.T @ step / m - w_anchor * (yf - y0_free if basis is None else basis.T @ (yf - y0_free))
+        off = yf - y0_free
+        if key_normals is not None:
+            off = off - key_normals * (off * key_normals).sum(1)[:, None]
+        rhs = l_basis.T @ step / m - w_anchor * (off if basis is None else basis.T @ off)
         theta = scipy.linalg.cho_solve(factor, rhs)
         delta = theta if basis is None else basis @ theta
         yf = yf + delta
@@ -178,6 +184,19 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
             break
     y[free] = yf
     return n_iter, residual
+
+
+def _shape(x: np.ndarray, h: float, config: GmmConfig) -> tuple[np.ndarray, np.ndarray | None]:
+    """(bias (m, 3), normals (m, 3) or None) of the moving set x at scale h: ``m_X(x_i) - x_i``, the mean of the
+    moving set around each point with the point itself left out (it has weight exactly 1), which the scene's mean
+    shows too where the two sets coincide (a property of the local shape, subtracted from the step), and the
+    surface normals for the normal pull."""
+    m = len(x)
+    w_x, mean_x = np.empty(m), np.empty((m, 3))
+    GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
+    w_self = np.maximum(w_x - 1.0, 0.0)
+    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
+    return bias, (surface_normals(x, h) if config.pull == "normal" else None)
 
 
 def l2_cost(x: np.ndarray, scene: np.ndarray, scale: float, *, tol: float | None = None) -> float:

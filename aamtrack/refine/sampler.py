@@ -4,22 +4,27 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 
 1. computes ``D^t(F^0)`` for every frame from the current key points;
 2. samples candidate key points at random from F^0;
-3. keeps those whose motion in ``D^t(F^0)`` correlates with the motion of their neighbourhood above the mean;
-4. refines the key points' positions in every frame by non-rigid GMM registration (:mod:`.gmm`) of their
-   neighbourhoods in ``D^t(F^0)`` to the scan F^t (the landmarks stay where the detector put them);
+3. keeps those whose motion correlates with the motion of their neighbourhood above the mean; the motion is
+   ``D^t(F^0)`` moved along the scans' normals onto the scans (:func:`_observed_motion`), so that motion the
+   current key points do not see yet (a cheek puff between landmarks) draws candidates;
+4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
+   F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
+   scan's normal onto the scan (:func:`_project`);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
-Step 4 in detail (our choices; the paper names only the registration method): the moving set is all of the
-thinned F^0 (``whole``; else the key points' neighbourhoods), registered coarse to fine, first as a smooth field of
-a few nodes (``nodes``, so that whole regions with their curvature features are matched rather than patches that
-can slide), then key point by key point. A surface cannot say where skin slides along it, so the registration is
-pulled (``gmm.anchor``) to a prior: near the landmarks (within about ``prior_radius`` spacings) the prediction
-``D^t`` from the previous round, which interpolates the landmarks there; far from them (the skull, the neck) only
-the head's rigid motion, estimated per frame by rigid registration of F^0 to the scan, because ``D^t`` merely
-extrapolates there. On the ICT sequences this prior carries most of the gain (see benchmarks/refine.py).
+Step 4 in detail (our choices; the paper names only the registration method). A surface says where the skin is
+along its normal, not where it slid along itself. So the registration's steps are point-to-plane (``gmm.pull``:
+each moving point moves along its normal only), coarse to fine, first as a smooth field of a few nodes
+(``nodes``), then key point by key point, and the key points are pulled (``gmm.anchor``) to a prior that places
+them along the surface: near the landmarks (within about ``prior_radius`` spacings) the landmarks' own thin-plate
+prediction, far from them (the skull, the neck, the sides of the cheeks) the head's rigid motion, estimated per
+frame by robust point-to-plane ICP of F^0 to the scan (:func:`_rigid_motion`). The prior comes from the landmarks
+and the rigid motion only, never from a previous round's registration, so that sliding cannot add up over rounds.
+Measured on ICT sequences in benchmarks/refine.py (with and without the registration: ``registration=False``).
 
-Only the landmarks are assumed to correspond between frames: the scans are point clouds, and the error that
-steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the scans.
+Only the landmarks are assumed to correspond between frames: the scans are point clouds (any subset of the face,
+any order), and the error that steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the
+scans, truncated so that template parts a scan does not cover count the same wherever they are.
 """
 
 from __future__ import annotations
@@ -49,7 +54,10 @@ class SamplerConfig:
     kernel, smoothing : of the RBF deformation; gmm : registration options (one scale per entry of ``nodes``);
     nodes : per scale, the number of nodes of the smooth field the free key points move by (0: each moves on its
     own), None: always on their own; whole : register all of F^0 (else only the key points' neighbourhoods);
-    prior_radius : reach of the prediction in the prior, in units of the (thinned) spacing; seed : of the sampling.
+    prior_radius : reach of the prediction in the prior, in units of the (thinned) spacing; registration : False
+    leaves the key points at their prior (an ablation: what the GMM registration adds); project : after the
+    registration, move each free key point along the scan's normal onto the scan (:func:`_project`);
+    seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -63,6 +71,8 @@ class SamplerConfig:
     nodes: tuple | None = (12, 48, 0)
     whole: bool = True
     prior_radius: float = 4.0
+    registration: bool = True
+    project: bool = True
     seed: int = 0
 
 
@@ -153,6 +163,19 @@ class _Surface:
         return np.minimum(out, cap)
 
 
+def _observed_motion(pred: np.ndarray, neutral: np.ndarray, surfaces: Sequence, cap: float) -> np.ndarray:
+    """(n_frames, n_vertices, 3) motion of F^0 as the scans show it: ``D^t(F^0)`` moved along the scan's normal onto
+    the nearest scan point's tangent plane (where a scan point is within ``cap``), minus F^0. Candidates are selected
+    on it, so that motion the key points cannot see yet (a cheek puff between landmarks) draws key points to it."""
+    out = pred.copy()
+    for t in range(1, len(pred)):
+        dist, j = surfaces[t].tree.query(pred[t], distance_upper_bound=cap)
+        ok = np.isfinite(dist)
+        n = surfaces[t].normals[j[ok]]
+        out[t, ok] -= n * ((pred[t, ok] - surfaces[t].points[j[ok]]) * n).sum(1)[:, None]
+    return out - neutral
+
+
 def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf) -> float:
     """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame), each
     truncated at ``cap``."""
@@ -161,27 +184,62 @@ def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf) ->
     return float(np.mean([surfaces[t].distance(pred[t], cap).mean() for t in range(1, len(pred))]))
 
 
-def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, moving, spacing, config, progress, rng):
-    """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
+def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigids, moving, spacing, cap, config,
+                     progress, rng):
+    """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3).
+    rigids : per frame, the head's rigid motion (a function of points, see :func:`_rigid_motion`)."""
     system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
     operator = system.operator(neutral[moving])
     free = np.arange(len(index)) >= n_fixed
     bases = None
     if config.nodes is not None:
         bases = [smooth_basis(neutral[index], free, k or len(index), rng) for k in config.nodes]
-    # the prior of every free key point: the prediction near the landmarks (where D^t interpolates them), no
-    # motion other than the head's rigid motion far from them (where D^t only extrapolates)
+    # the prior of every free key point: the landmarks' prediction near them (where it interpolates them), no
+    # motion other than the head's rigid motion far from them (where it only extrapolates). It comes from the
+    # landmarks alone, not from the previous round's registration, so that sliding cannot add up over rounds.
     rest = neutral[index]
     near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
+    from_landmarks = _predict(neutral, index[:n_fixed], positions[:, :n_fixed], config.kernel, config.smoothing, rest)
     out = positions.copy()
     for t in range(1, len(positions)):
-        rigid = _rigid_motion(neutral[moving], surfaces[t], positions[t, :n_fixed], rest[:n_fixed], spacing)
-        prior = rigid(rest) + near * (positions[t] - rigid(rest))
+        rigid = rigids[t](rest)
+        prior = rigid + near * (from_landmarks[t] - rigid)
+        if not config.registration:  # ablation: the key points stay at their prior
+            out[t, n_fixed:] = prior[n_fixed:]
+            if progress is not None:
+                progress(1)
+            continue
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
                           bases=bases, anchor_to=prior).controls
+        if config.project:
+            out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
         if progress is not None:
             progress(1)
     return out
+
+
+def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 4, n_iter: int = 3) -> np.ndarray:
+    """Move points along the scan's normal onto it: to the Gaussian-weighted mean of the tangent planes of their
+    ``k`` nearest scan points (weights ``exp(-d^2 / s^2)``, s the distance to the nearest of them); points without
+    a scan point within ``cap`` stay. Along the surface nothing moves. (Each tangent plane leaves about
+    ``curvature * d^2 / 2`` of the surface's bend: approximate, a small part of a millimetre on a face scan.)"""
+    x = np.array(points, np.float64)
+    for _ in range(n_iter):
+        dist, j = surface.tree.query(x, k=k, distance_upper_bound=cap)
+        ok = np.isfinite(dist[:, 0])
+        if not ok.any():
+            break
+        d, jj = dist[ok], j[ok]
+        valid = np.isfinite(d)
+        jj = np.where(valid, jj, jj[:, :1])
+        n = surface.normals[jj]
+        n = n * np.sign((n * n[:, :1]).sum(2))[:, :, None]  # one orientation per point
+        w = np.where(valid, np.exp(-((d / np.maximum(d[:, :1], 1e-12 * cap)) ** 2)), 0.0)
+        normal = (n * w[:, :, None]).sum(1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        offset = ((x[ok][:, None] - surface.points[jj]) * n).sum(2)
+        x[ok] -= normal * ((w * offset).sum(1) / w.sum(1))[:, None]
+    return x
 
 
 def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -273,6 +331,7 @@ def refine_key_points(
     spacing = mesh_spacing(neutral[moving_pool]) if len(moving_pool) > 1 else cell
     scenes = [np.asarray(s, np.float64)[thin(s, cell, rng)] for s in scans]
     radius = config.neighbour_radius * base_spacing
+    rigids = None
     cap = 4.0 * base_spacing  # truncation of the scan distance (template parts the scans do not cover)
 
     pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
@@ -284,7 +343,7 @@ def refine_key_points(
         if len(pool) == 0:
             break
         cand = rng.choice(pool, min(config.n_candidates, len(pool)), replace=False)
-        kept = select_candidates(pred - neutral if motion is None else motion, cand,
+        kept = select_candidates(_observed_motion(pred, neutral, surfaces, cap) if motion is None else motion, cand,
                                  tree0.query_ball_point(neutral[cand], radius))
         new_index = np.concatenate([index, kept])
         new_positions = np.concatenate([positions, pred[:, kept]], axis=1)
@@ -292,8 +351,11 @@ def refine_key_points(
         near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
         moving = moving_pool if config.whole else moving_pool[np.isfinite(near)]
         if n_frames > 1 and len(moving):
-            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, surfaces, moving, spacing,
-                                             config, progress, rng)
+            if rigids is None:  # the head's motion per frame does not depend on the key points: once
+                rigids = [None] + [_rigid_motion(neutral[moving_pool], surfaces[t], landmarks[t], neutral[index[:n_fixed]],
+                                                 spacing) for t in range(1, n_frames)]
+            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, surfaces, rigids,
+                                             moving, spacing, cap, config, progress, rng)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
         new_error = _surface_error(new_pred, surfaces, cap)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,

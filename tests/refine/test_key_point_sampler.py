@@ -1,7 +1,6 @@
 """Key point sampler: correlation-based selection on a constructed example; refinement on a synthetic sequence."""
 
 import numpy as np
-import pytest
 from conftest import SEED
 from scipy.spatial import cKDTree
 from synthetic import bumpy_surface
@@ -36,9 +35,6 @@ def test_static_points_have_zero_correlation():
     assert np.array_equal(corr, np.zeros(4))  # defined, not NaN
 
 
-@pytest.mark.xfail(strict=True, reason="regression, open: since the EM-like registration with the prior "
-                   "(rigid far from landmarks) the refined key points slide on this synthetic puff (seen 1.0x with the "
-                   "default anchor, 1.4-3.5x with weaker anchors; the L-BFGS registration it replaced gave 0.80x)")
 def test_refinement_reduces_tracking_error():
     rng = np.random.default_rng(SEED)
     neutral = bumpy_surface(24)
@@ -58,7 +54,9 @@ def test_refinement_reduces_tracking_error():
     assert list(keys.errors) == sorted(keys.errors, reverse=True)  # each accepted round lowers the error
     before = np.linalg.norm(deform_frames(neutral, keys.__class__(landmarks, frames[:, landmarks], 9)) - frames, axis=2)
     after = np.linalg.norm(deform_frames(neutral, keys) - frames, axis=2)
-    assert after.mean() < 0.9 * before.mean()  # lower than with the 9 landmarks alone (seen: 0.80x)
+    assert after.mean() < 0.9 * before.mean()  # lower than with the 9 landmarks alone (seen: 0.69x)
+    puff_region = np.abs(frames[3, :, 2] - neutral[:, 2]) > 0.02
+    assert after[:, puff_region].mean() < 0.75 * before[:, puff_region].mean()  # on the puff itself (seen 0.61x)
 
 
 def test_rigid_motion_of_the_head_is_recovered():

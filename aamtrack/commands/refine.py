@@ -96,7 +96,7 @@ def load_scans(path: Path, landmarks_path: Path | None = None) -> tuple[list, np
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from ..refine.sampler import SamplerConfig, deform_frames, refine_key_points
+    from ..refine.sampler import KeyPoints, SamplerConfig, deform_frames, refine_key_points
 
     mesh = read_mesh(args.template, args.template_landmarks)
     scans, landmarks = load_scans(args.scans, args.landmarks)
@@ -121,12 +121,15 @@ def run(args: argparse.Namespace) -> int:
             bar.update(n)
 
         keys = refine_key_points(mesh.vertices, scans, landmarks, mesh.landmark68, config=config, progress=progress)
-    frames = deform_frames(mesh.vertices, keys, kernel=config.kernel, smoothing=config.smoothing)
-    frames[0] = mesh.vertices  # exactly the template
+    frames = np.empty((len(scans), len(mesh.vertices), 3), np.float32)
+    for a in range(0, len(frames), 64):  # in chunks of frames: float64 only for 64 frames at a time
+        part = KeyPoints(keys.index, keys.positions[a:a + 64], keys.n_fixed)
+        frames[a:a + 64] = deform_frames(mesh.vertices, part, kernel=config.kernel, smoothing=config.smoothing)
+    frames[0] = mesh.vertices  # exactly the template (float32)
     if not np.isfinite(frames).all():
         raise InputError(f"{args.template}: degenerate template (the deformation is not finite)")
     faces = mesh.faces if len(mesh.faces) else None
-    arrays = {"frames": frames.astype(np.float32), "key_index": keys.index,
+    arrays = {"frames": frames, "key_index": keys.index,
               "key_positions": keys.positions.astype(np.float32), "landmark68": mesh.landmark68,
               "faces": mesh.faces}
     with tqdm(total=len(frames) if args.obj_dir else 0, desc="writing .obj", unit="file", file=sys.stderr,

@@ -86,6 +86,7 @@ def register(
     config: GmmConfig = GmmConfig(),
     bases: Sequence | None = None,
     anchor_to: np.ndarray | None = None,
+    cache: dict | None = None,
 ) -> GmmResult:
     """Move the control points so that ``operator @ controls`` matches the scene (Jian & Vemuri's L2 cost).
 
@@ -99,6 +100,9 @@ def register(
     sees whole regions with their curvature features rather than patches that could slide.
     anchor_to : optional (k, 3) float64 positions the free controls are pulled to (the prior where the surface
     cannot place them, e.g. sliding along it); default controls0.
+    cache : optional dict, filled on the first call and reused by later calls with the same operator, free, bases
+    and config (e.g. every frame of a sequence): the moving points that steer each scale and the factored normal
+    equations, which depend on nothing else.
 
     Each iteration is an EM-like (mean-shift) step of the L2 cost: every moving point x_i is sent by
     ``m_Z(x_i) - m_X(x_i)``, the difference of the Gaussian-weighted means of the scene and of the moving set (itself
@@ -130,26 +134,40 @@ def register(
         dof = n_free if basis is None else basis.shape[1]
         keep = min(1.0, max((config.density / float(rel)) ** 2, 8.0 * dof / m))
         z = scene[np.sort(rng.choice(n, max(1, int(round(keep * n))), replace=False))] if keep < 1 else scene
-        if config.max_points is not None:
-            keep = min(keep, max(config.max_points, 8 * dof) / m)
-        rows = rng.choice(m, max(1, int(round(keep * m))), replace=False) if keep < 1 else np.arange(m)
-        rows = rows[_spatial_order(operator[rows] @ y, 3.0 * h)]  # neighbours in turn: kinder to the cache
-        n_iter, residual = _iterate(operator[rows], y, free, z, h, y0_free, basis, config)
+        if cache is not None and level in cache:
+            rows, system = cache[level]
+        else:
+            if config.max_points is not None:
+                keep = min(keep, max(config.max_points, 8 * dof) / m)
+            rows = rng.choice(m, max(1, int(round(keep * m))), replace=False) if keep < 1 else np.arange(m)
+            rows = rows[_spatial_order(operator[rows] @ y, 3.0 * h)]  # neighbours in turn: kinder to the cache
+            system = _normal_equations(operator[rows], free, basis, config)
+            if cache is not None:
+                cache[level] = (rows, system)
+        n_iter, residual = _iterate(operator[rows], y, free, z, h, y0_free, basis, config, system)
         n_evals += n_iter
         log.debug("gmm: h=%.4g, %d iterations, residual %.4g", h, n_iter, residual)
     return GmmResult(y, operator @ y, residual, n_evals)
 
 
-def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, float]:
-    """One scale of :func:`register`; updates ``y[free]`` in place, returns (iterations, last mean squared step)."""
+def _normal_equations(operator, free, basis, config) -> tuple:
+    """(l_free, l_basis, factor) of one scale: the steering rows' operator on the free controls, on the basis
+    coefficients, and the Cholesky factor of the least-squares step's normal equations (with the anchor)."""
     m, n_free = len(operator), int(free.sum())
     l_free = np.ascontiguousarray(operator[:, free])
-    x_fixed = operator[:, ~free] @ y[~free]
     l_basis = l_free if basis is None else l_free @ basis
-    w_anchor = config.anchor / n_free
     eye = np.eye(n_free) if basis is None else basis.T @ basis
-    normal = l_basis.T @ l_basis / m + w_anchor * eye
+    normal = l_basis.T @ l_basis / m + (config.anchor / n_free) * eye
     factor = scipy.linalg.cho_factor(normal + 1e-12 * np.trace(normal) * np.eye(len(normal)))
+    return l_free, l_basis, factor
+
+
+def _iterate(operator, y, free, scene, h, y0_free, basis, config, system) -> tuple[int, float]:
+    """One scale of :func:`register`; updates ``y[free]`` in place, returns (iterations, last mean squared step)."""
+    m, n_free = len(operator), int(free.sum())
+    l_free, l_basis, factor = system
+    x_fixed = operator[:, ~free] @ y[~free]
+    w_anchor = config.anchor / n_free
     yf = y[free]
     x = np.ascontiguousarray(x_fixed + l_free @ yf)
     # m_X(x_i) - x_i, the mean of the moving set around x_i (x_i left out: it has weight exactly 1), is a property

@@ -201,6 +201,7 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
     near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
     from_landmarks = _predict(neutral, index[:n_fixed], positions[:, :n_fixed], config.kernel, config.smoothing, rest)
     out = positions.copy()
+    cache = {}  # the registration's normal equations: the same for every frame
     for t in range(1, len(positions)):
         rigid = rigids[t](rest)
         prior = rigid + near * (from_landmarks[t] - rigid)
@@ -210,7 +211,7 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                 progress(1)
             continue
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
-                          bases=bases, anchor_to=prior).controls
+                          bases=bases, anchor_to=prior, cache=cache).controls
         if config.project:
             out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
         if progress is not None:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.csvout import read_tracking_csv
-from ..io.obj import N_LANDMARKS, check_points, frame_files, load_npz, read_mesh, read_point_cloud, save_animation
+from ..io.obj import N_LANDMARKS, check_landmark_spread, check_points, frame_files, load_npz, read_mesh, read_point_cloud, save_animation
 
 DESCRIPTION = """Track a 3D scan sequence with a template mesh (Akagi et al.: RBF deformation driven by key points
 refined by GMM registration). TEMPLATE is the person's neutral mesh, frame 0 of the sequence: an .obj (landmarks
@@ -100,8 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     mesh = read_mesh(args.template, args.template_landmarks)
     scans, landmarks = load_scans(args.scans, args.landmarks)
-    if len(np.unique(mesh.vertices[mesh.landmark68], axis=0)) < 4:
-        raise InputError(f"{args.template}: landmarks collapse to fewer than 4 distinct points")
+    check_landmark_spread(args.template_landmarks or args.template, mesh.vertices[mesh.landmark68], "template")
     if len(scans) < 2:
         raise InputError(f"{args.scans}: one frame only: nothing to track (frame 0 is the template)")
     if not args.out.parent.is_dir():

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.csvout import read_tracking_csv
-from ..io.obj import N_LANDMARKS, NPZ_MESH_KEYS, check_landmarks, check_points, load_npz, read_mesh, save_animation
+from ..io.obj import N_LANDMARKS, NPZ_MESH_KEYS, check_landmark_spread, check_landmarks, check_points, load_npz, read_mesh, save_animation
 
 DESCRIPTION = ("""Transfer facial motion from SOURCE to the neutral 3D face TARGET (Akagi et al.).
 SOURCE is a tracking CSV of `aamtrack run` with the 3D model (columns frame, success, X_0..X_67, Y_0..Y_67,
@@ -71,14 +71,6 @@ def load_target(path: str | Path, landmarks_path: str | Path | None = None) -> t
     return mesh.vertices, mesh.faces, mesh.landmark68
 
 
-def _check_spread(path, points: np.ndarray, what: str) -> None:
-    """The similarity and the RBF need landmarks that span 3D: not collapsed, not all on one line or plane."""
-    centred = points - points.mean(0)
-    sv = np.linalg.svd(centred, compute_uv=False)
-    if len(np.unique(points, axis=0)) < 4 or sv[2] <= 1e-9 * sv[0]:
-        raise InputError(f"{path}: {what} landmarks are degenerate (collapsed or all in one plane)")
-
-
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "transfer", help="transfer facial motion to a 3D face", description=DESCRIPTION,
@@ -101,8 +93,8 @@ def run(args) -> int:
 
     frames, s_lm = load_source(args.source)
     verts, faces, t_lm = load_target(args.target, args.target_landmarks)
-    _check_spread(args.target_landmarks or args.target, verts[t_lm], "target")
-    _check_spread(args.source, frames[0, s_lm], "source")
+    check_landmark_spread(args.target_landmarks or args.target, verts[t_lm], "target")
+    check_landmark_spread(args.source, frames[0, s_lm], "source")
     if not args.out.parent.is_dir():
         raise InputError(f"{args.out}: folder {args.out.parent} does not exist")
     config = TransferConfig(sampler=SamplerConfig(seed=args.seed))

@@ -87,6 +87,14 @@ def check_landmarks(path, index, n_vertices: int) -> np.ndarray:
     return idx.astype(np.int64)
 
 
+def check_landmark_spread(path, points: np.ndarray, what: str) -> None:
+    """InputError unless the landmark positions (68, 3) span 3D (a similarity and an RBF need that): not collapsed,
+    not all on one line or plane."""
+    sv = np.linalg.svd(points - points.mean(0), compute_uv=False)
+    if len(np.unique(points, axis=0)) < 4 or sv[2] <= 1e-9 * sv[0]:
+        raise InputError(f"{path}: {what} landmarks are degenerate (collapsed or all in one plane)")
+
+
 def read_obj(path: str | Path) -> ObjMesh:
     """Read vertices, faces and an optional ``# landmark68`` line. Raises InputError naming the file and line."""
     path = Path(path)

@@ -115,6 +115,7 @@ def _bad_inputs(tmp):
     np.savez(tmp / "huge.npz", vertices=frames[0] * 1e9, landmark68=LANDMARKS)
     np.savez(tmp / "tiny.npz", vertices=frames[0] * 1e-12, landmark68=LANDMARKS)
     np.savez(tmp / "nokeys.npz", something=np.zeros(3))
+    np.savez(tmp / "flat.npz", vertices=frames[0] * [1, 1, 0], landmark68=LANDMARKS)
     folder = tmp / "folder"
     folder.mkdir()
     write_obj(folder / "a.obj", frames[0])
@@ -137,6 +138,7 @@ def _bad_inputs(tmp):
         "huge coordinates": [tmp / "huge.npz", scans],
         "tiny coordinates": [tmp / "tiny.npz", scans],
         "template without a mesh": [tmp / "nokeys.npz", scans],
+        "flat template": [tmp / "flat.npz", scans],
         "csv rows vs scans": [tpl, folder],
         "empty folder": [tpl, empty],
         "bad ply": [tpl, tmp / "bad.ply"],
@@ -145,7 +147,7 @@ def _bad_inputs(tmp):
 
 BAD = ["missing template", "missing scans", "nan in points", "missing landmarks key", "frame count mismatch",
        "67 landmarks", "one frame", "truncated npz", "duplicate landmarks", "huge coordinates", "tiny coordinates",
-       "template without a mesh", "csv rows vs scans", "empty folder", "bad ply"]
+       "template without a mesh", "flat template", "csv rows vs scans", "empty folder", "bad ply"]
 
 
 @pytest.mark.parametrize("case", BAD)

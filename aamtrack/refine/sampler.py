@@ -16,9 +16,9 @@ Step 4 in detail (our choices; the paper names only the registration method). A 
 along its normal, not where it slid along itself. So the registration's steps are point-to-plane (``gmm.pull``:
 each moving point moves along its normal only), coarse to fine, first as a smooth field of a few nodes
 (``nodes``), then key point by key point, and the key points are pulled (``gmm.anchor``) to a prior that places
-them along the surface: near the landmarks (within about ``prior_radius`` spacings) the landmarks' own thin-plate
-prediction, far from them (the skull, the neck, the sides of the cheeks) the head's rigid motion, estimated per
-frame by robust point-to-plane ICP of F^0 to the scan (:func:`_rigid_motion`). The prior comes from the landmarks
+them along the surface: a thin-plate RBF through the landmarks and through anchors far from them (beyond
+``rigid_beyond`` spacings: the skull, the neck) that follow the head's rigid motion, estimated per frame by robust
+point-to-plane ICP of F^0 to the scan (:func:`_rigid_motion`). The prior comes from the landmarks
 and the rigid motion only, never from a previous round's registration, so that sliding cannot add up over rounds.
 Measured on ICT sequences in benchmarks/refine.py (with and without the registration: ``registration=False``).
 
@@ -36,7 +36,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .gmm import GmmConfig, register, smooth_basis, thin
+from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
 from .rbf import rbf_system
 
 log = logging.getLogger(__name__)
@@ -54,7 +54,9 @@ class SamplerConfig:
     kernel, smoothing : of the RBF deformation; gmm : registration options (one scale per entry of ``nodes``);
     nodes : per scale, the number of nodes of the smooth field the free key points move by (0: each moves on its
     own), None: always on their own; whole : register all of F^0 (else only the key points' neighbourhoods);
-    prior_radius : reach of the prediction in the prior, in units of the (thinned) spacing; registration : False
+    rigid_beyond, n_rigid_anchors : the prior is a thin-plate RBF through the landmarks and through this many
+    points of F^0 (farthest point sampling) farther than ``rigid_beyond`` (thinned) spacings from every landmark,
+    which follow the head's rigid motion; registration : False
     leaves the key points at their prior (an ablation: what the GMM registration adds); project : after the
     registration, move each free key point along the scan's normal onto the scan (:func:`_project`);
     seed : of the sampling.
@@ -70,7 +72,8 @@ class SamplerConfig:
     gmm: GmmConfig = field(default_factory=lambda: GmmConfig(scales=(4.0, 2.0, 1.0), anchor=2.0))
     nodes: tuple | None = (12, 48, 0)
     whole: bool = True
-    prior_radius: float = 4.0
+    rigid_beyond: float = 8.0
+    n_rigid_anchors: int = 150
     registration: bool = True
     project: bool = True
     seed: int = 0
@@ -194,17 +197,19 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
     bases = None
     if config.nodes is not None:
         bases = [smooth_basis(neutral[index], free, k or len(index), rng) for k in config.nodes]
-    # the prior of every free key point: the landmarks' prediction near them (where it interpolates them), no
-    # motion other than the head's rigid motion far from them (where it only extrapolates). It comes from the
-    # landmarks alone, not from the previous round's registration, so that sliding cannot add up over rounds.
+    # the prior of every free key point: a thin-plate RBF through the landmarks (where the detector put them) and
+    # through anchors far from them that follow the head's rigid motion only (the skull, the neck, where the
+    # landmarks' own RBF merely extrapolates). It comes from the landmarks and the rigid motion only, never from a
+    # previous round's registration, so that sliding along the surface cannot add up over rounds.
     rest = neutral[index]
-    near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
-    from_landmarks = _predict(neutral, index[:n_fixed], positions[:, :n_fixed], config.kernel, config.smoothing, rest)
+    far_pool = moving[cKDTree(rest[:n_fixed]).query(neutral[moving])[0] > config.rigid_beyond * spacing]
+    anchors = far_pool[_farthest_points(neutral[far_pool], min(config.n_rigid_anchors, len(far_pool)), rng)] \
+        if len(far_pool) else np.zeros(0, np.int64)
+    prior_op = rbf_system(neutral[np.r_[index[:n_fixed], anchors]], kernel=config.kernel).operator(rest)
     out = positions.copy()
     cache = {}  # the registration's normal equations: the same for every frame
     for t in range(1, len(positions)):
-        rigid = rigids[t](rest)
-        prior = rigid + near * (from_landmarks[t] - rigid)
+        prior = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
         if not config.registration:  # ablation: the key points stay at their prior
             out[t, n_fixed:] = prior[n_fixed:]
             if progress is not None:

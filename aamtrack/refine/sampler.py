@@ -224,11 +224,14 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
     return out
 
 
-def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 4, n_iter: int = 3) -> np.ndarray:
+def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,
+             border: float = 0.5) -> np.ndarray:
     """Move points along the scan's normal onto it: to the Gaussian-weighted mean of the tangent planes of their
-    ``k`` nearest scan points (weights ``exp(-d^2 / s^2)``, s the distance to the nearest of them); points without
-    a scan point within ``cap`` stay. Along the surface nothing moves. (Each tangent plane leaves about
-    ``curvature * d^2 / 2`` of the surface's bend: approximate, a small part of a millimetre on a face scan.)"""
+    ``k`` nearest scan points (weights ``exp(-d^2 / s^2)``, s the distance to the nearest of them). Points stay
+    where no scan point is within ``cap`` and at the scan's border (their neighbours' centroid lies off to one
+    side along the surface by more than ``border`` times their mean distance: the tangent planes of a border
+    are poor). Along the surface nothing moves. (Each tangent plane leaves about ``curvature * d^2 / 2`` of the
+    surface's bend: approximate, a small part of a millimetre on a face scan.)"""
     x = np.array(points, np.float64)
     for _ in range(n_iter):
         dist, j = surface.tree.query(x, k=k, distance_upper_bound=cap)
@@ -243,8 +246,14 @@ def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 4,
         w = np.where(valid, np.exp(-((d / np.maximum(d[:, :1], 1e-12 * cap)) ** 2)), 0.0)
         normal = (n * w[:, :, None]).sum(1)
         normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
-        offset = ((x[ok][:, None] - surface.points[jj]) * n).sum(2)
-        x[ok] -= normal * ((w * offset).sum(1) / w.sum(1))[:, None]
+        rel = surface.points[jj] - x[ok][:, None]
+        centroid = (rel * valid[:, :, None]).sum(1) / valid.sum(1)[:, None]
+        along = centroid - normal * (centroid * normal).sum(1)[:, None]
+        spread = (np.linalg.norm(rel, axis=2) * valid).sum(1) / valid.sum(1)
+        inside = np.linalg.norm(along, axis=1) <= border * spread
+        offset = -(rel * n).sum(2)
+        move = normal * ((w * offset).sum(1) / w.sum(1))[:, None]
+        x[np.flatnonzero(ok)[inside]] -= move[inside]
     return x
 
 

@@ -76,3 +76,18 @@ def test_rigid_motion_of_the_head_is_recovered():
     rot0, shift0 = _rigid_fit(surface[landmarks], noisy, np.ones(len(landmarks)))  # from the landmarks alone
     err0 = np.linalg.norm(surface @ rot0.T + shift0 - truth, axis=1).max()
     assert err < 0.5 * err0  # the surface at least halves the error the landmarks' noise leaves
+
+
+def test_projection_onto_scan_along_its_normal_only():
+    from aamtrack.refine.sampler import _project, _Surface
+
+    rng = np.random.default_rng(SEED + 8)
+    u = rng.uniform(-1, 1, (3000, 2))
+    scan = np.column_stack([u, 0.1 * u[:, 0] ** 2])  # a gently curved sheet, x and y in [-1, 1]
+    inner = np.array([[0.2, -0.3, 0.05], [-0.4, 0.1, -0.04]])
+    out = _project(inner, _Surface(scan), cap=0.2)
+    on_sheet = 0.1 * out[:, 0] ** 2
+    assert np.abs(out[:, 2] - on_sheet).max() < 2e-3  # on the scan (curvature leaves < 1e-3 here)
+    assert np.abs(out[:, :2] - inner[:, :2]).max() < 2e-2  # moved along the (nearly vertical) normal only
+    beyond = np.array([[1.3, 0.0, 0.05], [5.0, 5.0, 1.0]])  # past the scan's border; far from any scan point
+    assert np.array_equal(_project(beyond, _Surface(scan), cap=0.5), beyond)  # they stay

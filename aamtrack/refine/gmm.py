@@ -144,29 +144,32 @@ def register(
             system = _normal_equations(operator[rows], free, basis, config)
             if cache is not None:
                 cache[level] = (rows, system)
-        n_iter, residual = _iterate(operator[rows], y, free, z, h, y0_free, basis, config, system)
+        n_iter, residual = _iterate(y, free, z, h, y0_free, basis, config, system)
         n_evals += n_iter
         log.debug("gmm: h=%.4g, %d iterations, residual %.4g", h, n_iter, residual)
     return GmmResult(y, operator @ y, residual, n_evals)
 
 
 def _normal_equations(operator, free, basis, config) -> tuple:
-    """(l_free, l_basis, factor) of one scale: the steering rows' operator on the free controls, on the basis
-    coefficients, and the Cholesky factor of the least-squares step's normal equations (with the anchor)."""
+    """(l_fixed, l_free, l_basis, factor) of one scale: the steering rows' operator on the fixed and on the free
+    controls, on the basis coefficients, and the Cholesky factor of the least-squares step's normal equations
+    (with the anchor)."""
     m, n_free = len(operator), int(free.sum())
+    l_fixed = np.ascontiguousarray(operator[:, ~free])
     l_free = np.ascontiguousarray(operator[:, free])
     l_basis = l_free if basis is None else l_free @ basis
     eye = np.eye(n_free) if basis is None else basis.T @ basis
     normal = l_basis.T @ l_basis / m + (config.anchor / n_free) * eye
     factor = scipy.linalg.cho_factor(normal + 1e-12 * np.trace(normal) * np.eye(len(normal)))
-    return l_free, l_basis, factor
+    return l_fixed, l_free, l_basis, factor
 
 
-def _iterate(operator, y, free, scene, h, y0_free, basis, config, system) -> tuple[int, float]:
-    """One scale of :func:`register`; updates ``y[free]`` in place, returns (iterations, last mean squared step)."""
-    m, n_free = len(operator), int(free.sum())
-    l_free, l_basis, factor = system
-    x_fixed = operator[:, ~free] @ y[~free]
+def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, float]:
+    """One scale of :func:`register` (system: of :func:`_normal_equations`); updates ``y[free]`` in place, returns
+    (iterations, last mean squared step)."""
+    l_fixed, l_free, l_basis, factor = system
+    m, n_free = len(l_free), int(free.sum())
+    x_fixed = l_fixed @ y[~free]
     w_anchor = config.anchor / n_free
     yf = y[free]
     x = np.ascontiguousarray(x_fixed + l_free @ yf)

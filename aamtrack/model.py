@@ -1,15 +1,19 @@
-"""The trained model: shape model, texture maps with their mean textures and appearance bases, and one update
-matrix per couple (image resolution x texture resolution); saved as one versioned ``.npz``.
+"""The trained model: shape model, feature kind, texture maps with their mean textures and appearance bases, per
+couple (image resolution x texture resolution) a learned update cascade (or a Jacobian update matrix), the
+detector's box geometry and the fit validator; saved as one versioned ``.npz``.
 
 File layout (``np.savez_compressed``, read with ``allow_pickle=False``): ``meta`` is a JSON string with
-``format_version``, the package version, the model kind, names and the training configuration; arrays are
-``shape/*``, ``tex{i}/*`` and ``couple{j}/U``.
+``format_version``, the package version, the model kind, names, the feature settings and the training record;
+arrays are ``shape/*``, ``tex{i}/*``, ``couple{j}/*``, ``detector/box_points`` and ``validator/*``. ``load_model``
+checks every array's shape, dtype, finiteness and index range, so a damaged or crafted file is one clear error,
+never a crash in compiled code.
 """
 
 from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,16 +21,20 @@ import numpy as np
 
 from . import __version__
 from .errors import ModelFileError
+from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
-from .mesh.shape_model import ShapeModel
+from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+N_LANDMARKS = 68
+MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
 
 
 @dataclass(frozen=True)
 class Texture:
-    """One texture resolution: its map, mean texture (N,) float32 and appearance basis (N, m) float32."""
+    """One texture resolution: its map, mean texture (D,) float32 and appearance basis (D, m) float32, with
+    D = channels * frame.n_pixels (channel-major)."""
 
     frame: TextureFrame
     mean: np.ndarray
@@ -35,41 +43,78 @@ class Texture:
 
 @dataclass(frozen=True)
 class Couple:
-    """One couple: runs on the image resampled so the face is ``face_px`` wide, on texture ``texture``, with
-    update matrix U (n_free, N) float32 (delta = U e) for the parameters ``free`` (n_free,) int64 of q
-    (coarse couples may search the pose only); prior_step (n_free, n_free) and prior (n_free,) carry the
-    Gaussian prior on the coefficients (see ``aamtrack.train.update.update_matrix``)."""
+    """One couple: runs on the image resampled so the face is ``face_px`` wide, on texture ``texture``, and
+    updates the search vector's entries ``free`` (n_free,) int64 (the pose, coefficients and, 3D, the shape
+    units; the coarsest couple may search the pose only).
+
+    Learned cascade: ``cascade`` (n_stages, n_free, D) float32 and ``cascade_bias`` (n_stages, n_free) float64,
+    delta = R_s e + b_s per stage (``aamtrack.train.cascade``). Jacobian alternative (n_stages = 0):
+    ``update_matrix`` (n_free, D) float32, U = -(G^T G + diag(prior))^-1 G^T, with ``prior_step``
+    (n_free, n_free) and ``prior`` (n_free,) for the Gaussian prior (``aamtrack.train.update``).
+    """
 
     face_px: float
     texture: int
-    U: np.ndarray
     free: np.ndarray
+    cascade: np.ndarray
+    cascade_bias: np.ndarray
+    update_matrix: np.ndarray
     prior_step: np.ndarray
     prior: np.ndarray
+
+    @property
+    def n_stages(self) -> int:
+        return self.cascade.shape[0]
+
+
+@dataclass(frozen=True)
+class Validator:
+    """Logistic fit validator: confidence = 1 / (1 + exp(-(w . (x - mean) / scale + bias))) over the fit
+    statistics x named ``names`` (``aamtrack.search.STAT_NAMES``)."""
+
+    names: tuple
+    weights: np.ndarray
+    mean: np.ndarray
+    scale: np.ndarray
+    bias: float
+
+    def __call__(self, x: np.ndarray) -> float:
+        z = float(np.dot(self.weights, (np.asarray(x, float) - self.mean) / self.scale) + self.bias)
+        return float(1.0 / (1.0 + np.exp(-np.clip(z, -50.0, 50.0))))
 
 
 @dataclass(frozen=True)
 class Model:
-    """A trained AAM. Couples are ordered coarse to fine. ``person`` (3D only) is a couple whose update matrix
-    also moves the shape units sigma (``ShapeModel.person_view``): the tracker runs it in the first good frames
-    of a video to estimate the person's sigma, which it then holds."""
+    """A trained AAM. Couples are ordered coarse to fine (couple 0 is the coarsest).
+
+    The search vector p is [pose (6), coefficients (n_coef), shape units (n_shape, 3D only)]: the 3D model
+    searches the person's shape units sigma with the pose and animation units (``ShapeModel.person_view``);
+    the tracker holds sigma once it has estimated it by pinning its bounds.
+    """
 
     shape: ShapeModel
+    features: Features
     textures: tuple
     couples: tuple
+    detector_box_points: np.ndarray
+    validator: Validator
     config: dict = field(default_factory=dict)
-    person: Couple | None = None
 
     @property
     def kind(self) -> str:
         return self.shape.kind
 
     @property
-    def face_width_units(self) -> float:
-        return self.shape.frontal_width()
+    def n_params(self) -> int:
+        return self.shape.n_q + self.shape.n_shape
+
+    @property
+    def param_names(self) -> tuple:
+        return self.shape.param_names + tuple(self.shape.shape_names)
 
 
 _SHAPE_ARRAYS = ("mean", "shape_units", "basis", "triangles", "landmark_map", "coef_lo", "coef_hi", "shape_sd")
+_COUPLE_ARRAYS = ("free", "cascade", "cascade_bias", "update_matrix", "prior_step", "prior")
 
 
 def save_model(model: Model, path: str | Path) -> None:
@@ -82,71 +127,213 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays[f"tex{i}/mean"] = t.mean
         arrays[f"tex{i}/appearance"] = t.appearance
     for j, c in enumerate(model.couples):
-        for k in ("U", "free", "prior_step", "prior"):
+        for k in _COUPLE_ARRAYS:
             arrays[f"couple{j}/{k}"] = getattr(c, k)
-    if model.person is not None:
-        for k in ("U", "free", "prior_step", "prior"):
-            arrays[f"person/{k}"] = getattr(model.person, k)
+    arrays["detector/box_points"] = model.detector_box_points
+    v = model.validator
+    arrays["validator/weights"], arrays["validator/mean"], arrays["validator/scale"] = v.weights, v.mean, v.scale
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
         "kind": model.shape.kind,
         "shape_names": list(model.shape.shape_names),
         "coef_names": list(model.shape.coef_names),
+        "features": {"kind": model.features.kind, "lcn_sigma": model.features.lcn_sigma,
+                     "soft": model.features.soft, "eps": model.features.eps, "blur": model.features.blur},
         "textures": [list(t.frame.shape) for t in model.textures],
         "couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.couples],
+        "validator": {"names": list(v.names), "bias": v.bias},
         "config": model.config,
-        "person": None if model.person is None else {"face_px": model.person.face_px,
-                                                     "texture": model.person.texture},
     }
     arrays["meta"] = np.array(json.dumps(meta))
     with atomic_write(path, "wb") as fh:
         np.savez_compressed(fh, **arrays)
 
 
-def _couple(data: dict, key: str, spec: dict) -> Couple:
-    return Couple(float(spec["face_px"]), int(spec["texture"]), data[f"{key}/U"],
-                  data[f"{key}/free"].astype(np.int64), data[f"{key}/prior_step"], data[f"{key}/prior"])
+class _Checker:
+    """Reads and checks the arrays of one model file; every failure is a ModelFileError naming the file."""
+
+    def __init__(self, path: Path, z):
+        self.path, self.z = path, z
+
+    def fail(self, what: str):
+        raise ModelFileError(f"{self.path}: corrupt model, {what}")
+
+    def array(self, key: str, dtype, shape: tuple, *, finite: bool = True) -> np.ndarray:
+        """The entry ``key`` as a C-contiguous array of ``dtype``, its shape matching ``shape`` (None = any
+        size), its values finite (floats)."""
+        if key not in self.z.files:
+            self.fail(f"missing '{key}'")
+        self._check_header(key)
+        a = self.z[key]
+        if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+            self.fail(f"'{key}' has shape {a.shape}, expected {tuple('*' if s is None else s for s in shape)}")
+        kind = np.dtype(dtype).kind
+        if (kind == "f" and a.dtype.kind not in "fiu") or (kind in "iu" and a.dtype.kind not in "iu"):
+            self.fail(f"'{key}' has dtype {a.dtype}, expected {np.dtype(dtype)}")
+        a = np.ascontiguousarray(a, dtype=dtype)
+        if finite and kind == "f" and not np.isfinite(a).all():
+            self.fail(f"'{key}' has non-finite values")
+        return a
+
+    def _check_header(self, key: str) -> None:
+        """Refuse an entry whose .npy header claims more bytes than the entry holds (or than any model needs)
+        before numpy allocates them."""
+        from numpy.lib import format as npformat
+
+        info = self.z.zip.getinfo(f"{key}.npy")
+        with self.z.zip.open(info) as fh:
+            version = npformat.read_magic(fh)
+            if version == (1, 0):
+                shape, _, dtype = npformat.read_array_header_1_0(fh)
+            else:
+                shape, _, dtype = npformat.read_array_header_2_0(fh)
+            header_len = fh.tell()
+        if dtype.hasobject:
+            self.fail(f"'{key}' holds Python objects")
+        nbytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+        if nbytes > MAX_ENTRY_BYTES or nbytes != info.file_size - header_len:
+            self.fail(f"'{key}' claims {nbytes} bytes of data, the file holds {info.file_size - header_len}")
+
+    def index(self, key: str, shape: tuple, upper: int, what: str) -> np.ndarray:
+        a = self.array(key, np.int64, shape)
+        if a.size and (a.min() < 0 or a.max() >= upper):
+            self.fail(f"'{key}' has {what} indices outside 0..{upper - 1}")
+        return a
+
+
+def _shape_model(c: _Checker, meta: dict) -> ShapeModel:
+    kind = meta.get("kind")
+    if kind not in ("2d", "3d"):
+        c.fail(f"unknown model kind {kind!r}")
+    mean = c.array("shape/mean", np.float64, (None, 3))
+    n_v = len(mean)
+    coef_names, shape_names = tuple(map(str, meta["coef_names"])), tuple(map(str, meta["shape_names"]))
+    n_coef, n_shape = len(coef_names), len(shape_names)
+    if kind == "2d" and n_shape:
+        c.fail("a 2d model has shape units (is its 'kind' wrong?)")
+    if kind == "3d" and not n_shape:
+        c.fail("a 3d model without shape units (is its 'kind' wrong?)")
+    coef_lo = c.array("shape/coef_lo", np.float64, (n_coef,))
+    coef_hi = c.array("shape/coef_hi", np.float64, (n_coef,))
+    if (coef_lo >= coef_hi).any():
+        c.fail("coefficient bounds inverted or empty")
+    shape_sd = c.array("shape/shape_sd", np.float64, (n_shape,))
+    if (shape_sd <= 0).any():
+        c.fail("non-positive shape-unit spreads")
+    triangles = c.index("shape/triangles", (None, 3), n_v, "vertex").astype(np.int32)
+    return ShapeModel(kind=kind, mean=mean, shape_units=c.array("shape/shape_units", np.float64, (n_shape, n_v, 3)),
+                      basis=c.array("shape/basis", np.float64, (n_coef, n_v, 3)), triangles=triangles,
+                      landmark_map=c.array("shape/landmark_map", np.float64, (N_LANDMARKS, n_v)),
+                      shape_names=shape_names, coef_names=coef_names, coef_lo=coef_lo, coef_hi=coef_hi,
+                      shape_sd=shape_sd)
+
+
+def _texture(c: _Checker, i: int, shp, n_v: int, channels: int) -> Texture:
+    h, w = (int(v) for v in shp)
+    if not (2 <= h <= 4096 and 2 <= w <= 4096):
+        c.fail(f"texture {i} of size {h}x{w}")
+    xy = c.array(f"tex{i}/pix_xy", np.int32, (None, 2))
+    n = len(xy)
+    if n == 0 or xy.min() < 0 or (xy[:, 0] >= w).any() or (xy[:, 1] >= h).any():
+        c.fail(f"texture {i} pixels outside its {w}x{h} map")
+    vid = c.index(f"tex{i}/pix_vid", (n, 3), n_v, "vertex").astype(np.int32)
+    bary = c.array(f"tex{i}/pix_bary", np.float32, (n, 3))
+    if np.abs(bary.sum(1) - 1.0).max() > 1e-3:
+        c.fail(f"texture {i} barycentric weights do not sum to 1")
+    mean = c.array(f"tex{i}/mean", np.float32, (channels * n,))
+    app = c.array(f"tex{i}/appearance", np.float32, (channels * n, None))
+    return Texture(TextureFrame((h, w), xy, vid, bary), mean, app)
+
+
+def _couple(c: _Checker, j: int, spec: dict, textures: tuple, n_params: int) -> Couple:
+    face_px, t = float(spec["face_px"]), int(spec["texture"])
+    if not (np.isfinite(face_px) and 4 <= face_px <= 4096):
+        c.fail(f"couple {j} face size {face_px}")
+    if not 0 <= t < len(textures):
+        c.fail(f"couple {j} names texture {t} of {len(textures)}")
+    D = len(textures[t].mean)
+    free = c.index(f"couple{j}/free", (None,), n_params, "parameter")
+    n = len(free)
+    if n == 0 or len(np.unique(free)) != n:
+        c.fail(f"couple {j} has empty or repeated parameter indices")
+    cascade = c.array(f"couple{j}/cascade", np.float32, (None, n, D))
+    U = c.array(f"couple{j}/update_matrix", np.float32, (n, None))
+    if cascade.shape[0] == 0 and U.shape[1] != D:
+        c.fail(f"couple {j} has neither a cascade nor an update matrix of {D} columns")
+    return Couple(face_px, t, free, cascade, c.array(f"couple{j}/cascade_bias", np.float64, (len(cascade), n)),
+                  U, c.array(f"couple{j}/prior_step", np.float64, (n, n) if U.shape[1] else (None, None)),
+                  c.array(f"couple{j}/prior", np.float64, (n,) if U.shape[1] else (None,)))
 
 
 def load_model(path: str | Path) -> Model:
-    """Read a model file; raises ModelFileError naming the file and what is wrong."""
+    """Read and check a model file; raises ModelFileError naming the file and what is wrong."""
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file")
     try:
         with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise ModelFileError(f"{path}: not a readable aamtrack model ({exc.__class__.__name__}: {exc})")
-    if "meta" not in data:
-        raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")
+            if not hasattr(z, "files"):
+                raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
+            if "meta" not in z.files:
+                raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")
+            c = _Checker(path, z)
+            meta = _meta(c)
+            return _read(c, meta)
+    except ModelFileError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile, zlib.error, EOFError,
+            MemoryError, OverflowError) as exc:
+        raise ModelFileError(f"{path}: not a readable aamtrack model ({exc.__class__.__name__}: {exc})") from None
+
+
+def _meta(c: _Checker) -> dict:
+    c._check_header("meta")
+    raw = c.z["meta"]
     try:
-        meta = json.loads(str(data["meta"]))
-        version = int(meta["format_version"])
-    except (ValueError, KeyError, TypeError):
-        raise ModelFileError(f"{path}: corrupt model metadata")
+        if raw.shape != () or raw.dtype.kind != "U":
+            raise ValueError
+        meta = json.loads(str(raw))
+    except (ValueError, TypeError):
+        c.fail("unreadable metadata")
+    if not isinstance(meta, dict):
+        c.fail("metadata is not a JSON object")
+    version = meta.get("format_version")
+    if type(version) is not int:  # 1.9, "1", true are not versions
+        c.fail(f"format_version {version!r} is not an integer")
     if version != FORMAT_VERSION:
-        raise ModelFileError(f"{path}: model format version {version} is not supported by aamtrack {__version__} "
+        raise ModelFileError(f"{c.path}: model format version {version} is not supported by aamtrack {__version__} "
                              f"(reads version {FORMAT_VERSION}); retrain it with 'aamtrack train'")
-    try:
-        shape = ShapeModel(kind=meta["kind"], shape_names=tuple(meta["shape_names"]),
-                           coef_names=tuple(meta["coef_names"]),
-                           **{k: data[f"shape/{k}"] for k in _SHAPE_ARRAYS})
-        textures = tuple(
-            Texture(TextureFrame(tuple(shp), data[f"tex{i}/pix_xy"], data[f"tex{i}/pix_vid"],
-                                 data[f"tex{i}/pix_bary"]), data[f"tex{i}/mean"], data[f"tex{i}/appearance"])
-            for i, shp in enumerate(meta["textures"]))
-        couples = tuple(_couple(data, f"couple{j}", c) for j, c in enumerate(meta["couples"]))
-        pm = meta.get("person")
-        person = None if pm is None else _couple(data, "person", pm)
-    except KeyError as exc:
-        raise ModelFileError(f"{path}: corrupt model, missing {exc}")
-    n_ext = shape.n_q + shape.n_shape
-    for c in couples + ((person,) if person is not None else ()):
-        n_pix = textures[c.texture].frame.n_pixels
-        if (c.U.shape != (len(c.free), n_pix) or c.prior_step.shape != (len(c.free),) * 2
-                or c.prior.shape != (len(c.free),) or c.free.max() >= n_ext):
-            raise ModelFileError(f"{path}: corrupt model, update matrix of shape {c.U.shape}, "
-                                 f"expected {(len(c.free), n_pix)}")
-    return Model(shape=shape, textures=textures, couples=couples, config=meta.get("config", {}), person=person)
+    return meta
+
+
+def _read(c: _Checker, meta: dict) -> Model:
+    shape = _shape_model(c, meta)
+    f = meta["features"]
+    if f.get("kind") not in FEATURE_KINDS:
+        c.fail(f"unknown feature kind {f.get('kind')!r}")
+    features = Features(kind=f["kind"], lcn_sigma=float(f["lcn_sigma"]), soft=float(f["soft"]), eps=float(f["eps"]),
+                        blur=float(f["blur"]))
+    if not all(np.isfinite(v) and 0 <= v <= 100 for v in (features.lcn_sigma, features.soft, features.eps,
+                                                          features.blur)):
+        c.fail("negative or non-finite feature settings")
+    textures = tuple(_texture(c, i, shp, shape.n_vertices, features.channels) for i, shp in enumerate(meta["textures"]))
+    n_params = shape.n_q + shape.n_shape
+    couples = tuple(_couple(c, j, spec, textures, n_params) for j, spec in enumerate(meta["couples"]))
+    if not couples:
+        c.fail("no couples")
+    vm = meta["validator"]
+    names = tuple(map(str, vm["names"]))
+    k = len(names)
+    validator = Validator(names, c.array("validator/weights", np.float64, (k,)),
+                          c.array("validator/mean", np.float64, (k,)), c.array("validator/scale", np.float64, (k,)),
+                          float(vm["bias"]))
+    if (validator.scale <= 0).any() or not np.isfinite(validator.bias):
+        c.fail("validator scale or bias out of range")
+    box = c.array("detector/box_points", np.float64, (N_LANDMARKS, 2))
+    config = meta.get("config", {})
+    return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
+                 validator=validator, config=config if isinstance(config, dict) else {})
+
+
+__all__ = ["FORMAT_VERSION", "N_POSE", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

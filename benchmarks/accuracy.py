@@ -484,7 +484,7 @@ def main(argv=None) -> int:
 
     import cv2
 
-    from peers import machine_name
+    from _common import machine_name
 
     cv2.setNumThreads(1)
 

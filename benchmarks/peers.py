@@ -100,6 +100,7 @@ STILLS = "300w/helen_test"
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
 
+from _common import machine_name  # noqa: E402
 from peer_runners import (  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
     PeerRun,
     PeerUnavailable,
@@ -280,19 +281,6 @@ def load_stills(data_dir=DATA) -> tuple[list[np.ndarray], np.ndarray]:
     images = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in paths]
     points = np.stack([read_pts(p.with_suffix(".pts")) for p in paths])
     return images, points
-
-
-def machine_name() -> str:
-    """CPU model name (from /proc/cpuinfo where there is one) and core count."""
-    name = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                name = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{name}, {os.cpu_count()} logical CPUs"
 
 
 def _versions() -> dict:

@@ -21,7 +21,8 @@ import numpy as np
 from aamtrack.io.dataset import find_pairs, load_pair
 from aamtrack.metrics import nme
 from aamtrack.model import load_model
-from aamtrack.track.search import Searcher
+from aamtrack.imaging import to_gray32
+from aamtrack.search import Searcher
 from aamtrack.train.shape_fit import fit_landmarks
 
 
@@ -47,9 +48,10 @@ def evaluate(model_path: Path, data: Path, *, limit: int | None = None, seed: in
         gt = fit_landmarks(sm, pts)
         face_px = np.ptp(pts[:, 0])
         q0 = displaced_start(gt.q, face_px, rng)
-        pyr = searcher.levels(img)
+        pyr = searcher.levels(to_gray32(img))
+        sigma = gt.shape_params if sm.n_shape else None  # the person's shape held at the labels' fit
         t = time.perf_counter()
-        res = searcher.fit(pyr, q0, gt.shape_params)
+        res = searcher.fit(pyr, np.r_[q0, gt.shape_params], sigma)
         times.append(time.perf_counter() - t)
         before.append(nme(sm.landmarks(q0, gt.shape_params), pts))
         after.append(nme(res.landmarks, pts))

@@ -13,7 +13,7 @@ Conventions shared by every kernel (and documented once here):
   and coefficients add, the scale multiplies by ``exp(delta)``, and the translation moves by ``delta`` model
   units along the face's (rolled) axes. Training perturbs with the same ``_compose`` the search applies.
 - An image resampled by a factor ``scale`` is sampled at ``scale * x`` (the caller shifts the translation for
-  cv2.resize's half-pixel convention, see ``aamtrack.track.pyramid``).
+  cv2.resize's half-pixel convention, see ``aamtrack.imaging``).
 """
 
 from __future__ import annotations
@@ -71,17 +71,18 @@ def _project(shape3d, basis, q, out):
 
 @numba.njit(**NJIT)
 def _warp(image, verts, scale, pix_vid, pix_bary, out):
-    """Piecewise-affine warp with bilinear sampling: texture pixel p takes the image value at
-    ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]]``.
+    """Piecewise-affine warp with bilinear sampling: texture pixel p of channel ch takes the value of image
+    channel ch at ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]]``.
 
-    image (H, W) float32; verts (n, 2) float64 frame pixels; scale = the image's resampling factor;
-    pix_vid (N, 3) int32;
-    pix_bary (N, 3) float32; out (N,) float32. Samples outside the image take the nearest border value.
+    image (C, H, W) float32 (H, W >= 2); verts (n, 2) float64 frame pixels; scale = the image's resampling
+    factor; pix_vid (N, 3) int32; pix_bary (N, 3) float32; out (C * N,) float32, channel-major
+    (``out[ch * N + p]``). Samples outside the image take the nearest border value.
     Returns the number of texture pixels whose sample fell outside the image.
     """
-    H, W = image.shape
+    C, H, W = image.shape
+    N = pix_vid.shape[0]
     n_out = 0
-    for p in range(pix_vid.shape[0]):
+    for p in range(N):
         a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
         wa, wb, wc = pix_bary[p, 0], pix_bary[p, 1], pix_bary[p, 2]
         x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0])
@@ -94,9 +95,10 @@ def _warp(image, verts, scale, pix_vid, pix_bary, out):
         y0 = min(int(y), H - 2)
         fx = x - x0
         fy = y - y0
-        top = image[y0, x0] + fx * (image[y0, x0 + 1] - image[y0, x0])
-        bot = image[y0 + 1, x0] + fx * (image[y0 + 1, x0 + 1] - image[y0 + 1, x0])
-        out[p] = top + fy * (bot - top)
+        for ch in range(C):
+            top = image[ch, y0, x0] + fx * (image[ch, y0, x0 + 1] - image[ch, y0, x0])
+            bot = image[ch, y0 + 1, x0] + fx * (image[ch, y0 + 1, x0 + 1] - image[ch, y0 + 1, x0])
+            out[ch * N + p] = top + fy * (bot - top)
     return n_out
 
 
@@ -119,31 +121,55 @@ def _normalize(tex):
 
 
 @numba.njit(**NJIT)
-def _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e):
-    """e = P (normalise(W(I)) - I_m) with P the projection off the appearance basis ``app`` (N, m) float32
-    (orthonormal columns; m may be 0). Returns the mean squared residual |e|^2 / N.
-    Scratch: verts (n, 2) float64, tex (N,) float32, coef (m,) float64.
-    """
+def _finish_texture(tex, n_pixels, mode, rz):
+    """In place, what makes a warped texture comparable with the mean texture. mode 0 (grey levels): zero mean,
+    unit standard deviation. mode 1 (gradient vectors, channels gx, gy): each vector turned from image axes into
+    the face's own axes (x along the face, y down the face) by the in-plane angle rz."""
+    if mode == 0:
+        _normalize(tex)
+    else:
+        c = math.cos(rz)
+        s = math.sin(rz)
+        for p in range(n_pixels):
+            gx = tex[p]
+            gy = tex[n_pixels + p]
+            tex[p] = c * gx - s * gy
+            tex[n_pixels + p] = s * gx + c * gy
+
+
+@numba.njit(**NJIT)
+def _texture(image, scale, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex):
+    """tex (C * N,) float32 <- the finished texture of image (C, H, W) under q (see ``_warp``,
+    ``_finish_texture``). Scratch: verts (n, 2) float64."""
     _project(shape3d, basis, q, verts)
     _warp(image, verts, scale, pix_vid, pix_bary, tex)
-    _normalize(tex)
-    N = tex.shape[0]
+    _finish_texture(tex, pix_vid.shape[0], mode, q[2])
+
+
+@numba.njit(**NJIT)
+def _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e):
+    """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
+    basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D.
+    Scratch: verts (n, 2) float64, tex (D,) float32, coef (m,) float64.
+    """
+    _texture(image, scale, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex)
+    D = tex.shape[0]
     m = app.shape[1]
-    for p in range(N):
+    for p in range(D):
         e[p] = tex[p] - mean[p]
     for j in range(m):
         acc = 0.0
-        for p in range(N):
+        for p in range(D):
             acc += app[p, j] * e[p]
         coef[j] = acc
     err = 0.0
-    for p in range(N):
+    for p in range(D):
         acc = e[p]
         for j in range(m):
             acc -= app[p, j] * coef[j]
         e[p] = acc
         err += acc * acc
-    return err / N
+    return err / D
 
 
 @numba.njit(**NJIT)
@@ -184,7 +210,7 @@ def _prior_cost(q, free, prior):
 
 @numba.njit(**NJIT)
 def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
-            max_iter, tol, n_steps, delta_tol):
+            mode, max_iter, tol, n_steps, delta_tol):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
     1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does,
     when the cost falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
@@ -197,7 +223,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
     Returns (iterations, final cost).
     """
     n = shape3d.shape[0]
-    N = pix_vid.shape[0]
+    N = mean.shape[0]
     verts = np.empty((n, 2))
     tex = np.empty(N, dtype=np.float32)
     coef = np.empty(app.shape[1])
@@ -205,7 +231,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
     e_try = np.empty(N)
     q_try = np.empty_like(q)
     delta = np.empty(free.shape[0])
-    err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e)
+    err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
     err += _prior_cost(q, free, prior) / N
     it = 0
     while it < max_iter:
@@ -229,7 +255,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
         err_try = err
         for _ in range(n_steps):
             _compose(q, free, delta, step, lo, hi, q_try)
-            err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary,
+            err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary, mode,
                                 verts, tex, coef, e_try) + _prior_cost(q_try, free, prior) / N
             if err_try < err:
                 accepted = True
@@ -249,14 +275,14 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
 
 
 @numba.njit(**NJIT)
-def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, app, pix_vid, pix_bary,
+def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, app, pix_vid, pix_bary, mode,
                          G, e0):
     """Add to G (N, n_free) the least-squares slopes of the residual along each free parameter of one
     training image: G[:, a] += sum_d d (e(q0 + d e_a) - e(q0)) / sum_d d^2 over the perturbations
     ``steps[a]`` (n_free, n_steps), each composed with ``_compose``. Also writes e(q0) into e0.
     """
     n = shape3d.shape[0]
-    N = pix_vid.shape[0]
+    N = mean.shape[0]
     verts = np.empty((n, 2))
     tex = np.empty(N, dtype=np.float32)
     coef = np.empty(app.shape[1])
@@ -265,7 +291,7 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
     delta = np.zeros(free.shape[0])
     no_lo = np.full(q0.shape[0], -np.inf)
     no_hi = np.full(q0.shape[0], np.inf)
-    _residual(image, scale, shape3d, basis, q0, mean, app, pix_vid, pix_bary, verts, tex, coef, e0)
+    _residual(image, scale, shape3d, basis, q0, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e0)
     for a in range(free.shape[0]):
         denom = 0.0
         for k in range(steps.shape[1]):
@@ -275,8 +301,48 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
             d = steps[a, k]
             delta[a] = d
             _compose(q0, free, delta, 1.0, no_lo, no_hi, q)
-            _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, verts, tex, coef, e)
+            _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
             for p in range(N):
                 G[p, a] += d * (e[p] - e0[p]) / denom
         delta[a] = 0.0
 
+
+
+@numba.njit(**NJIT)
+def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid, pix_bary, mode,
+             verts, tex, coef, e, delta):
+    """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
+    delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
+
+    R (n_stages, n_free, D) float32, b (n_stages, n_free) float64. Scratch: verts (n, 2) float64,
+    tex (D,) float32, coef (m,) float64, e (D,) float64, delta (n_free,) float64.
+    Returns |e|^2 / D of the last stage's residual (before its update).
+    """
+    q_new = np.empty_like(q)
+    err = 0.0
+    for s in range(R.shape[0]):
+        err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        for a in range(free.shape[0]):
+            acc = b[s, a]
+            for p in range(e.shape[0]):
+                acc += R[s, a, p] * e[p]
+            delta[a] = acc
+        _compose(q, free, delta, 1.0, lo, hi, q_new)
+        for i in range(q.shape[0]):
+            q[i] = q_new[i]
+    return err
+
+
+@numba.njit(**NJIT)
+def _residual_batch(image, scale, shape3d, basis, Q, mean, app, pix_vid, pix_bary, mode, E):
+    """E[i] = the projected residual of image at Q[i] (``_residual``), for Q (M, n_q) float64; E (M, D) float32.
+    Training's bulk evaluation of many perturbed starts on one image."""
+    D = mean.shape[0]
+    verts = np.empty((shape3d.shape[0], 2))
+    tex = np.empty(D, dtype=np.float32)
+    coef = np.empty(app.shape[1])
+    e = np.empty(D)
+    for i in range(Q.shape[0]):
+        _residual(image, scale, shape3d, basis, Q[i], mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        for p in range(D):
+            E[i, p] = e[p]

@@ -7,6 +7,8 @@ import platform
 from pathlib import Path
 
 from ..errors import InputError
+from ..io.atomic import check_replaceable
+from ..io.frames import open_frames
 from ..io.summary import write_summary_json
 from ..models import default_model_path
 from ..track.benchmark import format_table, run_bench
@@ -15,7 +17,11 @@ from ..track.benchmark import format_table, run_bench
 def register(sub) -> None:
     p = sub.add_parser("bench", help="time the tracker per stage at several resolutions",
                        description="Median, p90 and max per-frame times (decode, detect, pyramid, search, output), "
-                                   "tracking and end-to-end fps; numba warm-up reported apart.")
+                                   "tracking and end-to-end fps; numba warm-up reported apart.",
+                       epilog="examples:\n"
+                              "  OMP_NUM_THREADS=1 aamtrack bench samples/cap12_first12s.mp4\n"
+                              "  aamtrack bench clip.mp4 --model my2d.npz --sizes 640x480 --frames 100 --json b.json",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="video file or folder of frames")
     p.add_argument("--model", type=Path, action="append", help="model file (repeatable; default: both shipped)")
     p.add_argument("--sizes", default="320x240,640x480,1280x720", help="resolutions WxH, comma-separated")
@@ -25,19 +31,40 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+MAX_SIDE = 7680  # 8K UHD width: larger frames are a typo (100000x100000 would need 30 GB per frame)
+MAX_FRAMES = 1_000_000
+MAX_HELD_BYTES = 4e9
+
+
 def _sizes(text: str) -> list[tuple[int, int]]:
     try:
         sizes = [tuple(int(v) for v in s.lower().split("x")) for s in text.split(",")]
-        if any(len(s) != 2 or min(s) < 16 for s in sizes):
+        if any(len(s) != 2 or min(s) < 16 or max(s) > MAX_SIDE for s in sizes):
             raise ValueError
     except ValueError:
-        raise InputError(f"--sizes {text!r}: expected WxH[,WxH...] such as 640x480")
+        raise InputError(f"--sizes {text!r}: expected WxH[,WxH...] such as 640x480, "
+                         f"each side 16..{MAX_SIDE} px") from None
     return sizes
 
 
 def run(args: argparse.Namespace) -> int:
+    if not 1 <= args.frames <= MAX_FRAMES:
+        raise InputError(f"--frames {args.frames}: expected a number of frames in 1..{MAX_FRAMES}")
+    if not 1 <= args.threads <= 1024:
+        raise InputError(f"--threads {args.threads}: expected at least 1")
+    if args.json:  # checked before the long work
+        if not args.json.parent.is_dir():
+            raise InputError(f"{args.json.parent}: output folder does not exist")
+        check_replaceable(args.json)
+    sizes = _sizes(args.sizes)
+    held = max(w * h * 3 for w, h in sizes) * args.frames  # bench_one decodes all frames first, then tracks
+    if held > MAX_HELD_BYTES:
+        raise InputError(f"--frames {args.frames} at {args.sizes}: would hold {held / 1e9:.1f} GB of frames in "
+                         f"memory (at most {MAX_HELD_BYTES / 1e9:.0f} GB); use fewer frames or smaller sizes")
+    with open_frames(args.input):  # a bad input fails here, before the models' warm-up
+        pass
     models = args.model or [default_model_path("3d"), default_model_path("2d")]
-    rows = run_bench(args.input, models, _sizes(args.sizes), max_frames=args.frames, threads=args.threads)
+    rows = run_bench(args.input, models, sizes, max_frames=args.frames, threads=args.threads)
     print(f"machine: {platform.node()} {platform.machine()} {_cpu_name()}, python {platform.python_version()}")
     print(format_table(rows))
     if args.json:

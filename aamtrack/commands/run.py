@@ -4,8 +4,11 @@ per frame), a JSON summary and optionally an overlay video and per-frame .pts fi
 from __future__ import annotations
 
 import argparse
+import glob
 import logging
+import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -13,79 +16,161 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import open_frames
-from ..io.overlay import OverlayWriter
+from ..io.atomic import OutputSet
+from ..io.frames import display_name, open_frames
+from ..io.overlay import OverlayWriter, mesh_edges
 from ..io.pts import write_pts_per_frame
 from ..io.summary import write_summary_json
 from ..model import load_model
 from ..models import default_model_path
+from ..track.benchmark import warmup
+from ..track.events import annotate
 from ..track.replay import realtime
+from ..track.smooth import SmoothConfig, smooth_results
 from ..track.timing import ms_stats, timed
 from ..track.tracker import Tracker
 
 log = logging.getLogger(__name__)
+DEFAULT_SMOOTH = SmoothConfig()
+
+
+EPILOG = """examples:
+  aamtrack run samples/cap12_first12s.mp4 --out-dir out/sample
+  aamtrack run clip.mp4 --video --report          overlay video and report.html next to the CSV
+  aamtrack run 'frames/*.png' --fps 30 --pts      a glob of images (quoted), one .pts per tracked frame
+  aamtrack run clip.mp4 --kind 2d --no-smooth     the 2D model, raw (unsmoothed) landmarks
+  aamtrack -v run clip.mp4                        log detections, re-detections and why frames were lost
+
+outputs (in --out-dir, default <input>_aamtrack/ next to the input):
+  <name>.csv            one row per frame: status, confidence, pose, 68 landmarks (and 3D points, units)
+  <name>.json           summary: frames read / tracked / lost, re-detections, timings, outputs
+  <name>_overlay.webm   with --video (.mp4 where OpenCV has an H.264 encoder; mp4v .mp4 as a last resort)
+  <name>_pts/           with --pts: one iBUG .pts file per tracked frame
+  report.html           with --report: plots, lost stretches with thumbnails, summary (needs matplotlib)
+
+smoothing: landmarks and pose pass through a One Euro filter (Casiez et al., CHI 2012), reset on every
+detection and after lost frames. Lower --smooth-beta smooths more and lags more on slow motion; see README."""
 
 
 def register(sub) -> None:
     p = sub.add_parser("run", help="track a face in a video file or a folder of frames",
-                       description="Track the largest face in a recorded video (or a folder / glob of images read "
-                                   "in name order) and write one CSV row per frame plus a JSON summary.")
+                       description="Track the largest face in a recorded video (or a folder / glob of images read\n"
+                                   "in name order) and write one CSV row per frame plus a JSON summary.",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="video file, folder of images, or a quoted glob such as 'frames/*.png'")
     p.add_argument("--model", type=Path, help="model file (default: the shipped 3D model)")
     p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="which shipped model when --model is not given")
     p.add_argument("--out-dir", type=Path, help="output folder (default: <input>_aamtrack next to the input)")
-    p.add_argument("--video", action="store_true", help="also write an overlay video with the fitted mesh")
+    p.add_argument("--video", action="store_true",
+                   help="also write an overlay video: mesh, landmarks, pose axes, frame number, status, confidence")
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per tracked frame")
+    p.add_argument("--report", action="store_true",
+                   help="also write report.html: pose, animation units and confidence over time, lost and "
+                        "low-confidence stretches with thumbnails (needs matplotlib: pip install 'aamtrack[plot]')")
     p.add_argument("--realtime", action="store_true",
                    help="replay at the video's frame rate; frames that arrive while the tracker is busy are dropped")
     p.add_argument("--fps", type=float, help="frame rate of an image folder (default 25)")
+    d = SmoothConfig()
+    p.add_argument("--no-smooth", action="store_true", help="write the raw tracker output (no One Euro smoothing)")
+    p.add_argument("--smooth-min-cutoff", type=float, default=d.min_cutoff, metavar="HZ",
+                   help=f"One Euro cutoff at rest; lower is calmer when still (default {d.min_cutoff:g})")
+    p.add_argument("--smooth-beta", type=float, default=d.beta, metavar="BETA",
+                   help=f"how fast the cutoff rises with speed (Hz per face width per second); higher lags less "
+                        f"in motion, lower jitters less (default {d.beta:g})")
     p.set_defaults(func=run)
+
+
+def output_base(input_: str) -> tuple[Path, str]:
+    """(folder the input lives in, name for its outputs): a file's stem, a folder's name, and for a glob
+    pattern the name of the folder its matches are in (``'shots/*.png'`` -> ``shots``). A name that exists is
+    never read as a pattern, so ``my video [1].mp4`` is a file."""
+    src = Path(input_)
+    if not os.path.lexists(input_) and glob.has_magic(input_):
+        src = next((p for p in src.parents if not glob.has_magic(str(p))), Path("."))
+        src = src.resolve() if src == Path(".") else src
+        return src.parent, src.name or "frames"
+    if src.is_dir():
+        src = src.resolve() if src.name in ("", ".", "..") else src
+        return src.parent, src.name or "frames"
+    return src.parent, src.stem or src.name
 
 
 def output_dir(input_: str, out_dir: Path | None) -> Path:
     if out_dir is not None:
         return out_dir
-    src = Path(input_)
-    if any(ch in input_ for ch in "*?["):
-        src = Path(input_).parent
-    return src.parent / f"{src.stem or src.name}_aamtrack"
+    parent, stem = output_base(input_)
+    return parent / f"{stem}_aamtrack"
 
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
-               replay: bool = False, fps: float | None = None, progress: bool = True) -> dict:
-    """Track one input and write its outputs; returns the summary. Inputs are checked before anything is
-    written; every output appears complete or not at all."""
+               replay: bool = False, fps: float | None = None, progress: bool = True,
+               smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None) -> dict:
+    """Track one input and write its outputs; returns the summary. The input and the output folder are checked
+    before the work; every output is written under a temporary name and all are committed together at the
+    end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were).
+
+    smooth: One Euro smoothing of the results (None: raw tracker output). report: also write report.html
+    (needs matplotlib). notify: called with a one-line message while numba compiles on a first run."""
     t_start = time.perf_counter()
+    if report:
+        from ..io.report import require_matplotlib
+
+        require_matplotlib()
     source = open_frames(input_, fps=fps)
+    with source, OutputSet(out_dir) as outputs:
+        summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
+                         pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify)
+        outputs.commit()
+    return summary
+
+
+def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
+           pts: bool, replay: bool, progress: bool, smooth, report: bool, notify) -> dict:
     model = load_model(model_path)
     tracker = Tracker(model)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = Path(source.name).stem if Path(source.name).suffix else Path(source.name).name
+    outputs.prepare()
+    t_warm = _warm_up(tracker, notify)
+    out_dir = outputs.folder
+    stem = output_base(input_)[1]
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
+    pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
     sm = model.shape
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
     t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
     frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
     t_first = None
-    with source, TrackingCsvWriter(csv_path, anim_names=sm.coef_names if is3d else (),
-                                   shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
-        ov = OverlayWriter(out_dir / f"{stem}_overlay.mp4", source.fps, (source.width, source.height),
+    rep = None
+    if report:
+        from ..io.report import ReportBuilder
+
+        rep = ReportBuilder(model_kind=sm.kind, anim_names=sm.coef_names if is3d else (),
+                            min_confidence=tracker.config.min_confidence, edges=mesh_edges(sm.triangles))
+    with TrackingCsvWriter(outputs.file(csv_path.name), anim_names=sm.coef_names if is3d else (),
+                           shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d) as csv_w:
+        ov_tmp = outputs.file(f"{stem}_overlay.mp4") if overlay else None
+        ov = OverlayWriter(ov_tmp, source.fps, (source.width, source.height),
                            triangles=sm.triangles) if overlay else None
         try:
             bar = tqdm(total=source.n_frames, unit="frame", file=sys.stderr, disable=not progress or None,
-                       desc=stem)
+                       desc=display_name(stem))
             images = {}
-            for res in tracker.track(_remember(frames, images) if ov else frames):
+            keep = ov is not None or rep is not None
+            stream = annotate(tracker.track(_remember(frames, images) if keep else frames),
+                              min_confidence=tracker.config.min_confidence)
+            if smooth is not None:
+                stream = smooth_results(stream, smooth)
+            for res in stream:
                 t_first = t_first or time.perf_counter()
                 t = time.perf_counter()
                 csv_w.write(res)
+                image = images.pop(res.frame, None) if keep else None
                 if ov is not None:
-                    ov.write(images.pop(res.frame, None), res)
+                    ov.write(image, res)
+                if rep is not None:
+                    rep.add(res, image)
                 if pts and res.success:
-                    write_pts_per_frame(out_dir / f"{stem}_pts", res)
+                    write_pts_per_frame(pts_dir, res)
                 per_frame["output"].append(time.perf_counter() - t)
                 for k in ("detect", "pyramid", "search"):
                     if k in res.timings:
@@ -100,11 +185,12 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
             raise
         if ov is not None:
             ov.close()
+            video_path = outputs.written(ov_tmp, ov.path)  # another suffix if the writer fell back
     if counts["read"] == 0:
         raise InputError(f"{input_}: no frames")
     wall = time.perf_counter() - t_start
 
-    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"])]
+    track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
     summary = {
         "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
         "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
@@ -113,14 +199,44 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
         "realtime": replay, "video_fps": source.fps,
         "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
                       "track": ms_stats(track_times)},
-        "start_to_first_result_s": (t_first - t_start) if t_first else None,
+        "start_to_first_result_s": (t_first - t_start) if t_first else None, "warmup_s": t_warm,
+        "smoothing": None if smooth is None else {"filter": "one_euro", "min_cutoff_hz": smooth.min_cutoff,
+                                                  "beta": smooth.beta, "d_cutoff_hz": smooth.d_cutoff},
         "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},
     }
     if ov is not None:
-        summary["outputs"]["video"] = str(ov.path)
-    write_summary_json(json_path, summary)
+        summary["outputs"]["video"] = str(video_path)
+    if pts:
+        summary["outputs"]["pts"] = str(out_dir / f"{stem}_pts")
+    if rep is not None:
+        summary["outputs"]["report"] = str(out_dir / "report.html")
+        rep.write(outputs.file("report.html"), summary)
+    write_summary_json(outputs.file(json_path.name), summary)
     return summary
+
+
+def _warm_up(tracker: Tracker, notify, *, after: float = 1.5) -> float:
+    """Compile (or load from numba's cache) the kernels before the first frame; if that takes longer than a
+    cache load (``after`` seconds), ``notify`` says so while it runs (a first run compiles for several seconds)."""
+    said = threading.Event()
+
+    def say():
+        said.set()
+        notify("compiling kernels (first run only) ...")
+
+    timer = threading.Timer(after, say) if notify is not None else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    try:
+        seconds = warmup(tracker)
+    finally:
+        if timer is not None:
+            timer.cancel()
+    if said.is_set():
+        notify(f"kernels ready in {seconds:.1f} s (cached for later runs)")
+    return seconds
 
 
 def _remember(frames, images: dict):
@@ -131,11 +247,33 @@ def _remember(frames, images: dict):
 
 def run(args: argparse.Namespace) -> int:
     model_path = args.model or default_model_path(args.kind)
+    smooth = None
+    if not args.no_smooth:
+        try:
+            smooth = SmoothConfig(min_cutoff=args.smooth_min_cutoff, beta=args.smooth_beta)
+        except ValueError:
+            raise InputError(f"--smooth-min-cutoff must be > 0 and --smooth-beta >= 0, got "
+                             f"{args.smooth_min_cutoff:g} and {args.smooth_beta:g}") from None
     s = track_file(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir),
-                   overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps)
+                   overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps, smooth=smooth,
+                   report=args.report, notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
-          f"{s['fps_end_to_end']:.0f} fps end to end -> {s['outputs']['csv']}")
+          f"{s['fps_end_to_end']:.0f} fps end to end -> {', '.join(_outputs(s['outputs']))}")
     if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {args.input}", file=sys.stderr)
+        print(f"aamtrack run: warning: no face found in any frame of {display_name(args.input)}", file=sys.stderr)
     return 0
+
+
+def _outputs(outputs: dict) -> list[str]:
+    """Every output written, the folder's name once: 'out/a.csv', 'a.json', 'a_pts/ (20 files)', ..."""
+    names = []
+    for key in ("csv", "summary", "video", "pts", "report"):
+        if key not in outputs:
+            continue
+        path = Path(outputs[key])
+        text = display_name(path) if not names else display_name(path.name)
+        if key == "pts":
+            text += f"/ ({sum(1 for _ in path.glob('*.pts'))} files)"
+        names.append(text)
+    return names

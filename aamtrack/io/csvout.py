@@ -9,7 +9,8 @@ Columns, in order::
     <animation unit names>, <shape parameter names>  (exactly as given)
 
 ``frame`` is 0-based, ``timestamp`` in seconds, rotations in radians, translation and landmarks in image pixels,
-``pose_scale`` in pixels per model unit, 3D landmarks in model units (pose removed). Frames without a face have
+``pose_scale`` in pixels per model unit, 3D landmarks in model units (pose removed). Pixel positions use the
+``.pts`` files' convention (see :mod:`aamtrack.io.pts`). Frames without a face have
 ``success`` 0 and empty landmark, pose and parameter fields; any NaN is written as an empty field.
 """
 
@@ -25,17 +26,17 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from .atomic import TemporaryOutput, temporary_path
+from .atomic import TemporaryOutput, output_error, temporary_path
+from .pts import N_LANDMARKS
 
 __all__ = ["TrackingCsvWriter", "read_tracking_csv", "csv_columns"]
 
 logger = logging.getLogger(__name__)
 
-N_LANDMARKS = 68
 HEAD = ("frame", "timestamp", "success", "dropped", "status", "confidence")
 POSE = ("pose_Rx", "pose_Ry", "pose_Rz", "pose_Tx", "pose_Ty", "pose_scale")
 INT_COLUMNS = ("frame", "success", "dropped", "face_id")
-TEXT_COLUMNS = ("status",)
+TEXT_COLUMNS = ("status", "file")
 
 
 def csv_columns(*, anim_names: Sequence[str] = (), shape_names: Sequence[str] = (), with_3d: bool = False,
@@ -81,6 +82,8 @@ class TrackingCsvWriter(TemporaryOutput):
         Add the ``X_i, Y_i, Z_i`` columns from ``result.landmarks3d``.
     n_landmarks : int
         Landmarks per frame (68 for iBUG).
+    leading : sequence of str
+        Text columns before all others (``aamtrack fit`` writes ``file``); ``write`` then takes their values.
 
     Attributes
     ----------
@@ -90,24 +93,28 @@ class TrackingCsvWriter(TemporaryOutput):
     """
 
     def __init__(self, path: str | os.PathLike, *, anim_names: Sequence[str] = (), shape_names: Sequence[str] = (),
-                 with_3d: bool = False, n_landmarks: int = N_LANDMARKS):
+                 with_3d: bool = False, n_landmarks: int = N_LANDMARKS, leading: Sequence[str] = ()):
         self.path = Path(path)
+        self.leading = tuple(leading)
         self.with_3d = bool(with_3d)
         self.n_landmarks = int(n_landmarks)
         self.n_anim, self.n_shape = len(anim_names), len(shape_names)
-        self.columns = csv_columns(anim_names=anim_names, shape_names=shape_names, with_3d=with_3d,
-                                   n_landmarks=n_landmarks)
+        self.columns = list(self.leading) + csv_columns(anim_names=anim_names, shape_names=shape_names,
+                                                        with_3d=with_3d, n_landmarks=n_landmarks)
         self.n_rows = 0
         self._tmp = temporary_path(self.path)
-        self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        try:
+            self._handle = open(self._tmp, "x", encoding="utf-8", newline="")
+        except OSError as exc:
+            raise output_error(self.path, exc) from None
         self._writer = csv.writer(self._handle, lineterminator="\n")
-        self._writer.writerow(self.columns)
+        self._write_row(self.columns)
 
     def _row(self, result) -> list[str]:
         status = str(result.status)
         head = [str(int(result.frame)), format(float(result.timestamp), ".4f"), "1" if result.success else "0",
                 "1" if status == "dropped" else "0", status, *_fmt([result.confidence], ".4f")]
-        n_rest = len(self.columns) - len(head)
+        n_rest = len(self.columns) - len(self.leading) - len(head)
         if not result.success:
             return head + [""] * n_rest
         where = f"{self.path}: frame {result.frame}"
@@ -130,16 +137,25 @@ class TrackingCsvWriter(TemporaryOutput):
             if len(values) != n:
                 raise ValueError(f"{where}: {len(values)} {label}, expected {n} (one per column name)")
             row += _fmt(values, ".5f")
-        if len(row) != len(self.columns):  # pragma: no cover - guards the layout above
+        if len(row) + len(self.leading) != len(self.columns):  # pragma: no cover - guards the layout above
             raise AssertionError(f"row of {len(row)} fields for {len(self.columns)} columns")
         return row
 
-    def write(self, result) -> None:
-        """Append the row of one :class:`~aamtrack.track.result.FrameResult`."""
+    def write(self, result, leading: Sequence[str] = ()) -> None:
+        """Append the row of one :class:`~aamtrack.track.result.FrameResult` (after the ``leading`` values)."""
         if self._handle is None:
             raise ValueError(f"{self.path}: writer is closed")
-        self._writer.writerow(self._row(result))
+        if len(leading) != len(self.leading):
+            raise ValueError(f"{self.path}: {len(leading)} leading values for columns {self.leading}")
+        self._write_row([str(v) for v in leading] + self._row(result))
         self.n_rows += 1
+
+    def _write_row(self, row: list[str]) -> None:
+        try:
+            self._writer.writerow(row)
+        except OSError as exc:  # disk full, I/O error: nothing half-written stays behind
+            self.abort()
+            raise output_error(self.path, exc) from None
 
     def _release(self) -> None:
         self._handle.close()

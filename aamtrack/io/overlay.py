@@ -1,4 +1,6 @@
-"""Overlay video: each input frame with the fitted mesh and the 68 landmarks drawn on it, written atomically.
+"""Overlay video: each input frame with the fitted mesh, the 68 landmarks, the head's axes, the frame number,
+status and confidence drawn on it (a full-width banner on frames without a result), written atomically in a
+codec browsers play where OpenCV has one (:func:`codec_attempts`).
 
 Frames are written to a temporary name that keeps the video extension (``.name.<random>.tmp.mp4``, so OpenCV
 picks the container from it) and renamed to the destination on ``close()``.
@@ -6,24 +8,35 @@ picks the container from it) and renamed to the destination on ``close()``.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import secrets
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from ..mesh.shape_model import rotation_matrix
+
 from ..errors import OutputError
-from .atomic import TemporaryOutput, discard_temporary, temporary_path
+from .atomic import TemporaryOutput, check_replaceable, discard_temporary
+from .frames import opencv_path
 
 __all__ = ["OverlayWriter", "mesh_edges", "draw_result"]
 
 logger = logging.getLogger(__name__)
 
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
-_MESH_COLOR = {"tracked": (80, 200, 80), "detected": (60, 200, 230)}  # BGR: green when tracked, yellow on detection
-_POINT_COLOR = (40, 40, 240)
-_TEXT_COLOR = (40, 40, 240)
+# Colours, BGR (the legend is in README, "Overlay"):
+_MESH_COLOR = {"tracked": (80, 200, 80), "detected": (60, 200, 230)}  # green when tracked, yellow on detection
+_POINT_COLOR = (40, 40, 240)  # landmarks: red dots
+_AXIS_COLORS = ((60, 60, 255), (60, 220, 60), (255, 140, 40))  # head axes x (red), y (green), z (blue)
+_STATUS_COLOR = {"tracked": (80, 220, 80), "detected": (60, 220, 240), "lost": (50, 50, 235),
+                 "dropped": (0, 150, 255), "unreadable": (170, 170, 170)}
+_BANNER_COLOR = {"lost": (30, 30, 200), "dropped": (0, 120, 230), "unreadable": (90, 90, 90)}
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
 def mesh_edges(triangles: np.ndarray) -> np.ndarray:
@@ -54,13 +67,26 @@ def draw_result(image: np.ndarray, result, edges: np.ndarray | None = None) -> n
     image : (H, W, 3) uint8 BGR
     result : FrameResult
         Successful: mesh edges between ``result.vertices`` (if ``edges`` and vertices are given) as thin lines
-        and the landmarks as small dots. Otherwise the status ("lost", "dropped", ...) as small text.
+        (green when tracked, yellow on a detection), the landmarks as red dots and the head's axes from the nose
+        tip (x red, y green, z blue, from ``result.rotation``). Every frame: frame number, status and confidence
+        in the top-left corner. A frame without a result gets a full-width banner across the top (red "LOST"
+        with the reason, orange "DROPPED", grey "UNREADABLE") and a frame border of the same colour.
     edges : (n_edges, 2) int, optional
         From :func:`mesh_edges`.
     """
-    if not result.success:
-        cv2.putText(image, str(result.status), (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _TEXT_COLOR, 1, cv2.LINE_AA)
-        return image
+    if result.success:
+        _draw_face(image, result, edges)
+    else:
+        _draw_banner(image, result)
+    _draw_status(image, result)
+    return image
+
+
+def _text_scale(image: np.ndarray) -> float:
+    return max(0.4, min(image.shape[0], 1.3 * image.shape[1]) / 600.0)
+
+
+def _draw_face(image: np.ndarray, result, edges) -> None:
     scale = 1 << _SHIFT
     if edges is not None and result.vertices is not None and len(edges):
         vertices = np.asarray(result.vertices, dtype=np.float64)
@@ -77,7 +103,121 @@ def draw_result(image: np.ndarray, result, edges: np.ndarray | None = None) -> n
     for x, y in landmarks[np.isfinite(landmarks).all(axis=1)]:
         cv2.circle(image, (int(round(x * scale)), int(round(y * scale))), 2 * scale, _POINT_COLOR, -1,
                    cv2.LINE_AA, _SHIFT)
-    return image
+    _draw_axes(image, landmarks, np.asarray(result.rotation, dtype=np.float64))
+
+
+def axes_endpoints(landmarks: np.ndarray, rotation: np.ndarray) -> np.ndarray | None:
+    """(4, 2) image points: the nose tip (iBUG 30) and the tips of the head's x, y, z axes drawn from it, each half
+    the face width long; None without finite landmarks and rotation.
+
+    The model projects a point X as ``(s (R X)_x + tx, -s (R X)_y + ty)`` (image y points down), so the unit
+    axis k appears along ``(R[0, k], -R[1, k])``: x to the face's left (image right when frontal), y up, z out of
+    the face towards the camera (a dot when frontal).
+    """
+    if landmarks.shape != (68, 2) or not np.isfinite(landmarks).all() or rotation.shape != (3,) \
+            or not np.isfinite(rotation).all():
+        return None
+    length = 0.5 * float(np.ptp(landmarks[:, 0]))
+    R = rotation_matrix(*rotation)
+    origin = landmarks[30]
+    tips = origin + length * np.column_stack([R[0, :], -R[1, :]])  # (3, 2), one row per axis
+    return np.vstack([origin, tips])
+
+
+def _draw_axes(image: np.ndarray, landmarks: np.ndarray, rotation: np.ndarray) -> None:
+    ends = axes_endpoints(landmarks, rotation)
+    if ends is None:
+        return
+    scale = 1 << _SHIFT
+    o = tuple(np.round(ends[0] * scale).astype(int))
+    thickness = max(2, round(image.shape[0] / 240))
+    order = np.argsort([-rotation_matrix(*rotation)[2, k] for k in range(3)])  # draw the far axes first
+    for k in order:
+        tip = ends[k + 1]
+        if np.hypot(*(tip - ends[0])) < 1.0:
+            continue
+        cv2.arrowedLine(image, o, tuple(np.round(tip * scale).astype(int)), _AXIS_COLORS[k], thickness,
+                        cv2.LINE_AA, _SHIFT, 0.15)
+
+
+def _draw_status(image: np.ndarray, result) -> None:
+    """'#frame status confidence' on a dark box in the top-left corner (below the banner on lost frames)."""
+    fs = _text_scale(image)
+    thick = max(1, round(fs * 1.5))
+    text = f"#{result.frame}  {result.status}  conf {result.confidence:.2f}"
+    (tw, th), base = cv2.getTextSize(text, _FONT, fs, thick)
+    pad = max(3, round(4 * fs))
+    y0 = 0 if result.success else _banner_height(image)
+    x0 = 0 if result.success else _border(image)  # inside the loss border
+    x1, y1 = min(image.shape[1], x0 + tw + 2 * pad), min(image.shape[0], y0 + th + base + 2 * pad)
+    roi = image[y0:y1, x0:x1]
+    roi[:] = (roi * 0.35).astype(np.uint8)  # darkened box: readable on any footage
+    cv2.putText(image, text, (x0 + pad, y0 + pad + th), _FONT, fs, _STATUS_COLOR.get(result.status, (255, 255, 255)),
+                thick, cv2.LINE_AA)
+
+
+def _border(image: np.ndarray) -> int:
+    return max(2, round(image.shape[0] / 100))
+
+
+def _banner_height(image: np.ndarray) -> int:
+    return max(24, round(0.13 * image.shape[0]))
+
+
+def _draw_banner(image: np.ndarray, result) -> None:
+    """A full-width banner across the top and a border, in the status colour, with the status and reason."""
+    color = _BANNER_COLOR.get(result.status, _BANNER_COLOR["lost"])
+    h, w = image.shape[:2]
+    bh = min(h, _banner_height(image))
+    band = image[:bh]
+    band[:] = (0.2 * band + 0.8 * np.array(color)).astype(np.uint8)
+    border = _border(image)
+    cv2.rectangle(image, (0, 0), (w - 1, h - 1), color, 2 * border)
+    reason = getattr(result, "reason", "")
+    text = result.status.upper() + (f": {reason}" if reason else "")
+    fs = _text_scale(image) * 1.1
+    thick = max(1, round(fs * 2))
+    while fs > 0.3 and cv2.getTextSize(text, _FONT, fs, thick)[0][0] > w - 2 * border - 8:
+        fs *= 0.9
+    (tw, th), _ = cv2.getTextSize(text, _FONT, fs, thick)
+    cv2.putText(image, text, (max(border + 4, (w - tw) // 2), (bh + th) // 2), _FONT, fs, (255, 255, 255), thick,
+                cv2.LINE_AA)
+
+
+_BROWSER_CODECS = ("avc1", "VP80", "VP90")
+
+
+def codec_attempts(path: Path) -> list[tuple[Path, str]]:
+    """(file, fourcc) pairs to try, best first: codecs web browsers play (H.264 in .mp4, VP8 / VP9 in .webm),
+    then mp4v in .mp4 and MJPG in .avi, which they do not. The suffix of ``path`` picks the first container."""
+    mp4, webm, avi = path.with_suffix(".mp4"), path.with_suffix(".webm"), path.with_suffix(".avi")
+    suffix = path.suffix.lower()
+    if suffix == ".avi":
+        return [(avi, "MJPG")]
+    if suffix == ".webm":
+        return [(webm, "VP80"), (webm, "VP90"), (mp4, "avc1"), (mp4, "mp4v"), (avi, "MJPG")]
+    if suffix == ".mp4":
+        # VP9 is left out here: OpenCV's libvpx-vp9 writes about 60 ms per 400x300 frame, VP8 about 7
+        return [(mp4, "avc1"), (webm, "VP80"), (mp4, "mp4v"), (avi, "MJPG")]
+    return [(path, "mp4v"), (avi, "MJPG")]
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Silence file descriptor 2 (C-level stderr) for the duration; Python's sys.stderr is flushed first."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no real fd 2 (embedded interpreters)
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 class OverlayWriter(TemporaryOutput):
@@ -86,8 +226,10 @@ class OverlayWriter(TemporaryOutput):
     Parameters
     ----------
     path : str or PathLike
-        Destination, normally ``.mp4`` (codec 'mp4v'). If no mp4v writer can be opened, an MJPG ``.avi`` is
-        written instead at ``path`` with the suffix ``.avi`` (logged as a warning; see ``self.path``).
+        Destination, normally ``.mp4`` or ``.webm``. The first codec OpenCV can open of :func:`codec_attempts`
+        is used, and the suffix follows it: for ``.mp4``, H.264 (``avc1``) where OpenCV has an encoder for it,
+        else VP8 in ``.webm`` (the pip wheels of OpenCV have VP8 but no H.264 encoder), else ``mp4v`` (logged as
+        a warning: browsers do not play it), else MJPG in ``.avi``. See ``self.path`` and ``self.fourcc``.
     fps : float
         Frame rate of the output.
     size : (width, height)
@@ -98,6 +240,7 @@ class OverlayWriter(TemporaryOutput):
     Attributes
     ----------
     path : Path -- where the video will be on ``close()``
+    fourcc : str -- the codec used
     n_frames : int -- frames written so far
     """
 
@@ -108,15 +251,20 @@ class OverlayWriter(TemporaryOutput):
         self.edges = None if triangles is None else mesh_edges(triangles)
         self.n_frames = 0
         path = Path(path)
-        attempts = [(path, "mp4v")] if path.suffix.lower() != ".avi" else []
-        attempts.append((path.with_suffix(".avi"), "MJPG"))
+        attempts = codec_attempts(path)
         self._handle = None
         for target, fourcc in attempts:
-            tmp = temporary_path(target, keep_suffix=True)
-            writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps), self.size)
+            check_replaceable(target)
+            # An ASCII temporary name, handed to OpenCV through a name it can take (see opencv_path).
+            name = f".overlay.{secrets.token_hex(4)}.tmp{target.suffix}"
+            tmp = target.parent / name
+            with opencv_path(target.parent, directory=True) as folder, _quiet_stderr():
+                # _quiet_stderr: FFmpeg prints to the C stderr for every encoder it cannot open
+                writer = cv2.VideoWriter(f"{folder}/{name}", cv2.VideoWriter_fourcc(*fourcc), float(fps), self.size)
             if writer.isOpened():
-                if target != path:
-                    logger.warning("%s: cannot open an mp4v video writer; writing MJPG to %s instead", path, target)
+                if fourcc not in _BROWSER_CODECS and path.suffix.lower() != ".avi":
+                    logger.warning("%s: this OpenCV build has no H.264 or VP8 encoder; writing %s to %s, which "
+                                   "web browsers do not play (VLC and ffplay do)", path, fourcc, target)
                 self.path, self._tmp, self._handle, self.fourcc = target, tmp, writer, fourcc
                 break
             writer.release()
@@ -150,6 +298,19 @@ class OverlayWriter(TemporaryOutput):
 
     def _release(self) -> None:
         self._handle.release()
+
+    def _finish(self) -> None:
+        """OpenCV's writer reports no write error (a full disk leaves an unplayable file): read the finished
+        file's frame count back and refuse a file that does not hold every frame written."""
+        with opencv_path(self._tmp) as name:
+            cap = cv2.VideoCapture(name, cv2.CAP_FFMPEG)
+        try:
+            n = cap.get(cv2.CAP_PROP_FRAME_COUNT) if cap.isOpened() else -1
+        finally:
+            cap.release()
+        if n != self.n_frames:
+            raise OutputError(f"{self.path}: overlay video could not be written completely "
+                              f"({'unreadable' if n < 0 else f'{n:.0f} of {self.n_frames} frames'}; disk full?)")
 
     def _closed(self) -> None:
         logger.info("%s: %d frames", self.path, self.n_frames)

@@ -24,7 +24,7 @@ def to_jsonable(value: Any) -> Any:
     dicts, enums their value, dict keys strings. NaN and infinities become None (JSON has no NaN).
     """
     if isinstance(value, dict):
-        return {str(to_jsonable(k)) if not isinstance(k, str) else k: to_jsonable(v) for k, v in value.items()}
+        return {str(to_jsonable(k)) if not isinstance(k, str) else _text(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [to_jsonable(v) for v in value]
     if isinstance(value, (set, frozenset)):
@@ -41,14 +41,28 @@ def to_jsonable(value: Any) -> Any:
     if isinstance(value, np.generic):
         return to_jsonable(value.item())
     if isinstance(value, PurePath):
-        return str(value)
+        return _text(str(value))
     if isinstance(value, enum.Enum):
         return to_jsonable(value.value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return to_jsonable(dataclasses.asdict(value))
-    if value is None or isinstance(value, str):
+    if isinstance(value, str):
+        return _text(value)
+    if value is None:
         return value
     raise TypeError(f"cannot write {type(value).__name__} to JSON: {value!r:.60}")
+
+
+def _text(value: str) -> str:
+    """``value``, with bytes of a file name that are not UTF-8 (surrogates in Python) shown as ``\\xff``."""
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        try:
+            return value.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+        except UnicodeEncodeError:
+            return value.encode("utf-8", "backslashreplace").decode("utf-8")
+    return value
 
 
 def write_summary_json(path: str | os.PathLike, data: dict) -> None:

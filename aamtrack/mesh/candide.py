@@ -69,7 +69,7 @@ class _Lines:
         try:
             return int(tok[0])
         except (ValueError, IndexError):
-            raise InputError(f"{self.path}: line {self.i}: expected the number of {what}, got {' '.join(tok)!r}")
+            raise InputError(f"{self.path}: line {self.i}: expected the number of {what}, got {' '.join(tok)!r}") from None
 
     def numbers(self, n: int, what: str) -> list[float]:
         tok = self.next_data()
@@ -78,7 +78,7 @@ class _Lines:
         except ValueError:
             vals = []
         if len(vals) != n:
-            raise InputError(f"{self.path}: line {self.i}: expected {n} numbers for {what}, got {' '.join(tok)!r}")
+            raise InputError(f"{self.path}: line {self.i}: expected {n} numbers for {what}, got {' '.join(tok)!r}") from None
         return vals
 
 
@@ -103,7 +103,7 @@ def read_wfm(path: str | Path) -> Candide:
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})")
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
     cur = _Lines(text, path)
     n_v = cur.count("vertices")
     vertices = np.array([cur.numbers(3, "a vertex") for _ in range(n_v)], dtype=np.float64)

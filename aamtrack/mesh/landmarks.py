@@ -26,6 +26,20 @@ CANDIDE_ANCHORS = {
     8: 10,   # chin bottom (2.1)
 }
 
+# iBUG-68 left/right mirror: point i of a mirrored face is point IBUG_MIRROR[i] of the face, mirrored.
+IBUG_MIRROR = np.array(list(range(16, -1, -1)) + list(range(26, 16, -1)) + [27, 28, 29, 30, 35, 34, 33, 32, 31]
+                       + [45, 44, 43, 42, 47, 46, 39, 38, 37, 36, 41, 40]
+                       + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55] + [64, 63, 62, 61, 60, 67, 66, 65])
+
+
+def mirror_points(points: np.ndarray, width: int) -> np.ndarray:
+    """(..., 68, 2) landmarks of the horizontally mirrored image (``width`` pixels wide, pixel centres at
+    integers): x -> width - 1 - x, and left and right points swap names."""
+    out = np.asarray(points, float)[..., IBUG_MIRROR, :].copy()
+    out[..., 0] = width - 1 - out[..., 0]
+    return out
+
+
 # Triangles of the eyeballs and pupils (Candide 3.1.4 added them last): they lie behind the eyelid surface
 # and are used for landmarks only where nothing else is under a point.
 N_CANDIDE_SKIN_TRIANGLES = 168

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._kernels.warp import _project, _rotation
+from .landmarks import similarity_fit
 
 POSE_NAMES = ("rx", "ry", "rz", "scale", "tx", "ty")
 N_POSE = 6
@@ -125,16 +126,20 @@ class ShapeModel:
         return float(x.max() - x.min())
 
 
+def initial_pose(sm: ShapeModel, points: np.ndarray, shape_params=None) -> np.ndarray:
+    """q with a frontal similarity pose (rx = ry = 0) fitted to the points, coefficients 0."""
+    frontal = sm.landmark_map @ sm.neutral(shape_params)
+    dst = np.column_stack([points[:, 0], -points[:, 1]])
+    s, R, t = similarity_fit(frontal[:, :2], dst)
+    q = np.zeros(sm.n_q)
+    q[2] = np.arctan2(R[0, 1], R[0, 0])
+    q[3] = s
+    q[4], q[5] = t[0], -t[1]
+    return q
+
+
 def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
-    """(3, 3) float64 R = Rz @ Ry @ Rx."""
+    """(3, 3) float64 R = Rz @ Ry @ Rx, the model's rotation (the kernels' own ``_rotation``)."""
     R = np.empty((3, 3))
     _rotation(float(rx), float(ry), float(rz), R)
     return R
-
-
-def rotation_angles(R: np.ndarray) -> tuple[float, float, float]:
-    """Inverse of ``rotation_matrix`` (ry in [-pi/2, pi/2])."""
-    ry = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    rx = np.arctan2(R[2, 1], R[2, 2])
-    rz = np.arctan2(R[1, 0], R[0, 0])
-    return float(rx), float(ry), float(rz)

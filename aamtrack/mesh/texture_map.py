@@ -31,10 +31,11 @@ class TextureFrame:
 def texture_frame(ref2d: np.ndarray, triangles: np.ndarray, width: int) -> TextureFrame:
     """Rasterise the mesh (ref2d (n, 2) in image axes) into a map ``width`` pixels wide (1 pixel margin).
     A pixel covered by several triangles takes the first of them."""
-    lo = ref2d.min(0)
-    scale = (width - 3) / max(np.ptp(ref2d[:, 0]), 1e-9)
+    used = ref2d[np.unique(triangles)]  # vertices outside every triangle (landmark vertices) do not count
+    lo = used.min(0)
+    scale = (width - 3) / max(np.ptp(used[:, 0]), 1e-9)
     pts = (ref2d - lo) * scale + 1.0
-    height = int(np.ceil(pts[:, 1].max())) + 2
+    height = int(np.ceil(pts[np.unique(triangles), 1].max())) + 2
     yy, xx = np.mgrid[0:height, 0:width]
     grid = np.column_stack([xx.ravel(), yy.ravel()]).astype(float)
     W = barycentric_map(grid, pts, triangles)  # extrapolates outside; keep only pixels truly inside
@@ -44,10 +45,3 @@ def texture_frame(ref2d: np.ndarray, triangles: np.ndarray, width: int) -> Textu
     vid.sort(axis=1)
     bary = np.take_along_axis(W, vid, axis=1).astype(np.float32)
     return TextureFrame((height, width), grid[inside].astype(np.int32), vid, bary)
-
-
-def render_texture(frame: TextureFrame, values: np.ndarray) -> np.ndarray:
-    """(height, width) float32 image of texture values (for figures and debugging); NaN off the mask."""
-    img = np.full(frame.shape, np.nan, np.float32)
-    img[frame.pix_xy[:, 1], frame.pix_xy[:, 0]] = values
-    return img

@@ -27,8 +27,7 @@ def warmup(tracker: Tracker) -> float:
     """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds."""
     t = time.perf_counter()
     img = np.full((240, 320), 128, np.uint8)
-    q = tracker.initial_q((110.0, 70.0, 100.0, 100.0))
-    tracker.fit_roi(img.astype(np.float32), q, person=tracker.model.person is not None)
+    tracker.fit_roi(img, tracker.detection_starts((110.0, 70.0, 100.0, 100.0)))
     return time.perf_counter() - t
 
 

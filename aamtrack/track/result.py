@@ -6,19 +6,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-STATUSES = ("detected", "tracked", "lost", "dropped", "unreadable")
+from typing import Literal
+
+Status = Literal["detected", "tracked", "lost", "dropped", "unreadable"]
+STATUSES: tuple = Status.__args__
 
 
 @dataclass(frozen=True)
 class FitResult:
     """One active search on one image.
 
-    p : (n_params,) float64 -- final search vector (pose then deformation coefficients, see ``Model.param_names``)
+    p : (n_params,) float64 -- final search vector (pose, coefficients, shape units; ``Model.param_names``)
     landmarks : (68, 2) float64 -- iBUG-68 points in image pixels
     vertices : (n_vertices, 2) float64 -- all model vertices in image pixels
     residual : float -- final RMS of the normalised texture residual
-    iterations : tuple of int -- iterations run per couple, coarse to fine
-    errors : tuple of float -- final residual RMS per couple
+    iterations : tuple of int -- iterations (cascade stages) run per couple, coarse to fine
+    stats : tuple of float -- the fit statistics the validator reads (``aamtrack.search.STAT_NAMES``)
+    confidence : float -- 0..1, the model's validator on ``stats``: how likely the fit is on a face
     """
 
     p: np.ndarray
@@ -26,7 +30,8 @@ class FitResult:
     vertices: np.ndarray
     residual: float
     iterations: tuple = ()
-    errors: tuple = ()
+    stats: tuple = ()
+    confidence: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -38,14 +43,15 @@ class FrameResult:
     landmarks3d : (68, 3) float64 in the model's own frame (pose removed), 3D model only, else None
     rotation : (3,) float64 radians (Rx, Ry, Rz); 2D model: (0, 0, roll)
     translation : (2,) float64 pixels; scale : float (pixels per model unit)
-    anim_params, shape_params : 1-D float64, named by ``Model.anim_names`` / ``Model.shape_names``
+    anim_params, shape_params : 1-D float64, named by the shape model's ``coef_names`` / ``shape_names``
     vertices : (n_vertices, 2) float64 mesh vertices in pixels (for overlays), NaN where not successful
-    confidence : 0..1 from the texture residual
+    confidence : 0..1, the model's fit validator (``Model.validator``)
+    reason : why the frame has no result ("no face detected", "low confidence ..."); empty when successful
     """
 
     frame: int
     timestamp: float
-    status: str
+    status: Status
     confidence: float = 0.0
     landmarks: np.ndarray = field(default_factory=lambda: np.full((68, 2), np.nan))
     landmarks3d: np.ndarray | None = None
@@ -56,6 +62,7 @@ class FrameResult:
     shape_params: np.ndarray = field(default_factory=lambda: np.zeros(0))
     vertices: np.ndarray | None = None
     timings: dict = field(default_factory=dict)
+    reason: str = ""
 
     @property
     def success(self) -> bool:

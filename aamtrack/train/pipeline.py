@@ -1,6 +1,7 @@
-"""Offline learning end to end: shape model and per-image fits, texture maps, mean textures and appearance
-bases, and one update matrix per couple. Library code: progress goes through the ``progress`` wrapper the
-caller hands in (the CLI passes tqdm), messages through ``logging``."""
+"""Offline learning end to end: shape model and per-image fits, detector calibration, texture maps, mean
+textures and appearance bases in feature space, one learned update cascade (or Jacobian update matrix) per
+couple, and the fit validator. Library code: progress goes through the ``progress`` wrapper the caller hands in
+(the CLI passes tqdm), messages through ``logging``."""
 
 from __future__ import annotations
 
@@ -9,21 +10,29 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Iterable
 
+import cv2
 import numpy as np
 
-from .._kernels.warp import _accumulate_gradient
+from .._kernels.warp import _accumulate_gradient, _project
+from ..detector import guess_points
+from ..imaging import Features, Levels, level_factor, level_offset, to_gray32
 from ..mesh.candide import Candide
 from ..mesh.candide_model import candide_shape_model
-from ..mesh.landmarks import N_CANDIDE_SKIN_TRIANGLES, candide_landmark_map, refine_landmark_map
-from ..mesh.shape_model import N_POSE, ShapeModel
-from ..model import Couple, Model, Texture
-from ..track.pyramid import Octaves, octave_factor, to_gray32
-from ..track.detector import calibrate_detector
+from ..mesh.corrective import with_corrective_units
+from ..mesh.landmarks import N_CANDIDE_SKIN_TRIANGLES, candide_landmark_map, mirror_points, refine_landmark_map
+from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
+from ..mesh.texture_map import texture_frame
+from ..metrics import nme
+from ..model import Couple, Model, Texture, Validator
+from ..search import STAT_NAMES, Searcher
+from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
+from .detection import box_geometry, training_boxes
+from .octaves import Octaves, octave_factor
 from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
-from ..mesh.texture_map import texture_frame
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
+from .validator import logistic_fit, non_face_images
 
 log = logging.getLogger(__name__)
 
@@ -37,35 +46,56 @@ def _no_progress(iterable, **_):
 @dataclass(frozen=True)
 class TrainConfig:
     """couples: ((face_px, texture_width), ...) coarse to fine; a couple is valid only when its texture is no
-    wider than the face at its image resolution (face_px, see ``track.pyramid``).
-    n_appearance: appearance modes projected out.
-    pose_only_couples: how many of the coarsest couples search the pose only (shape is left to finer ones).
-    lcn_sigma: local contrast normalisation of each couple's image (pixels; 0 = off). On helen_test it took
-    the displaced-start search from mean NME 0.080 to 0.065 (2D model, 150 training images).
-    ring: 2D only, an outer ring of vertices this far beyond the outline (``shape2d.ring_operator``). At 0.12
-    it improved helen_test stills (0.065 -> 0.055) but drifted on video (cap12 0.056 -> 0.15: the ring locks
-    onto the static background), so it is off by default.
-    prior: Gaussian prior on the coefficients in the search, as the mean squared residual that a coefficient
-    one prior spread from 0 costs (``update.prior_weights``); without it the coefficients of the 2D model
-    ran to their bounds on video, fitting texture with shape. On cap12 (2D model) the mean NME went
-    0.056 -> 0.043 (0.003) -> 0.042 with no frame above 0.10 (0.01); helen_test displaced-start stills
-    0.065 -> 0.064 -> 0.070 (a stronger prior trades some capture range).
-    forehead_cut: 3D only, texture triangles whose centre is above this model y (hairline) are left out."""
+    wider than the face at its image resolution (face_px, see ``aamtrack.imaging``).
+    features: "gradient" (edge-structure gradient orientations, ``soft``/``eps``) or "intensity" (grey levels with
+    local contrast normalisation over ``lcn_sigma`` pixels).
+    update: "cascade" (learned regression, at most ``n_stages`` per couple from ``n_starts`` perturbed starts
+    per training image; a stage that lowers the training starts' median error by less than ``min_gain``
+    (relative) is dropped and ends the couple) or "jacobian" (U = -(G^T G + prior)^-1 G^T with step control,
+    the poster's method).
+    mirror: also learn from every training image mirrored (68-point left/right permutation): twice the data.
+    n_appearance: appearance modes projected out. pose_only_couples: how many of the coarsest couples update
+    the pose only. prior: Gaussian prior on the coefficients of the Jacobian search (``update.prior_weights``).
+    ring: 2D only, an outer ring of vertices this far beyond the outline (off: it locked onto static background
+    on video). forehead_cut: 3D only, texture triangles above this model y (hairline) are left out.
+    n_pca: 2D only, the most PCA shape modes kept (97% of the variance at most).
+    n_corrective: 3D only, corrective shape units learned from what Candide cannot fit of the labelled points
+    (``mesh.corrective``); 0 for the plain Candide model."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
-    n_appearance: int = 8
-    pose_only_couples: int = 2
+    features: str = "gradient"
     lcn_sigma: float = 8.0
-    ring: float = 0.0
+    soft: float = 1.0
+    eps: float = 1.0
+    blur: float = 1.5
+    update: str = "cascade"
+    n_stages: int = 3
+    min_gain: float = 0.01
+    n_starts: int = 6
+    mirror: bool = True
+    n_appearance: int = 8
+    pose_only_couples: int = 1
     prior: float = 0.01
+    ring: float = 0.0
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
+    n_pca: int = 20
+    n_corrective: int = 12
+    validator_images: int = 600
+    seed: int = 0
 
     def __post_init__(self):
         for face_px, tex in self.couples:
             if tex > face_px:
                 raise ValueError(f"couple ({face_px}, {tex}): texture finer than the face's pixels")
+        if self.update not in ("cascade", "jacobian"):
+            raise ValueError(f"update {self.update!r}: expected 'cascade' or 'jacobian'")
+        Features(self.features, self.lcn_sigma, self.soft, self.eps, self.blur)  # validates the kind
+
+    @property
+    def feature_spec(self) -> Features:
+        return Features(self.features, self.lcn_sigma, self.soft, self.eps, self.blur)
 
 
 @dataclass(frozen=True)
@@ -93,7 +123,7 @@ def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, confi
                 progress: Progress = _no_progress) -> tuple[ShapeModel, list[ShapeFit]]:
     """The shape model and each image's fit (pose, sigma, coefficients)."""
     if kind == "2d":
-        sm = pca_shape_model(points, ring=config.ring)
+        sm = pca_shape_model(points, ring=config.ring, max_modes=config.n_pca)
         return sm, [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
     if candide is None:
         raise ValueError("the 3D model needs the Candide mesh")
@@ -107,6 +137,10 @@ def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, confi
                                  _model_residuals(sm, fits, points[sub]), n_preferred=N_CANDIDE_SKIN_TRIANGLES)
         sm = ShapeModel(**{**sm.__dict__, "landmark_map": lm})
     fits = [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
+    if config.n_corrective:
+        sm = with_corrective_units(sm, _model_residuals(sm, fits, points), config.n_corrective)
+        fits = [fit_landmarks(sm, p, q0=f.q) for p, f in zip(progress(points, desc="fit corrected shapes", unit="img"),
+                                                             fits)]
     sigma = np.array([f.shape_params for f in fits])
     # The training set's average person becomes the mean shape; sigma's prior spread is the set's spread.
     mean = sm.neutral(sigma.mean(0))
@@ -123,45 +157,152 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
     return sm.triangles[centre_y < config.forehead_cut]
 
 
-def _person_couple(images, fits, sm: ShapeModel, textures, config: TrainConfig, progress) -> Couple:
-    """Update matrix of the finest couple over pose, coefficients and sigma (``ShapeModel.person_view``)."""
-    basis, free, _, _ = sm.person_view()
-    steps = perturbation_steps(sm, person=True)
-    face_px = config.couples[-1][0]
-    t = textures[-1]
+def coefficient_spreads(sm: ShapeModel) -> np.ndarray:
+    """(n_params,) prior spread of each coefficient and shape unit of the search vector (1 for the pose):
+    1 for 2D PCA coefficients (unit = 1 sd), half the range for animation units, ``shape_sd`` for shape units."""
+    out = np.ones(sm.n_q + sm.n_shape)
+    if sm.kind == "3d":
+        out[N_POSE:sm.n_q] = 0.5 * (sm.coef_hi - sm.coef_lo)
+    out[sm.n_q:] = sm.shape_sd
+    return out
+
+
+class _Fixed:
+    """A ``Levels`` stand-in holding one feature image, whatever factor is asked for."""
+
+    def __init__(self, image: np.ndarray):
+        self.image = image
+
+    def get(self, r: float) -> np.ndarray:
+        return self.image
+
+
+def _landmarks(sm: ShapeModel, basis: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """(M, 68, 2) landmarks of search vectors P (M, n_params)."""
+    out = np.empty((len(P), 68, 2))
+    verts = np.empty((sm.n_vertices, 2))
     mean = np.ascontiguousarray(sm.mean)
-    G = np.zeros((t.frame.n_pixels, len(free)))
-    e0 = np.empty(t.frame.n_pixels)
+    for i, p in enumerate(P):
+        _project(mean, basis, np.ascontiguousarray(p), verts)
+        out[i] = sm.landmark_map @ verts
+    return out
+
+
+def _augment(images, points, mirror: bool):
+    """Grey float32 images and points, plus their mirror images when asked."""
+    gray = [to_gray32(im) for im in images]
+    if not mirror:
+        return gray, np.asarray(points, float)
+    flipped = [np.ascontiguousarray(cv2.flip(g, 1)) for g in gray]
+    mpts = np.stack([mirror_points(p, g.shape[1]) for p, g in zip(points, gray)])
+    return gray + flipped, np.concatenate([points, mpts])
+
+
+def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, textures, frames, free_all, lo,
+                     hi, config, progress, record, rng) -> tuple[list[Couple], np.ndarray, np.ndarray]:
+    """Learn every couple's cascade, coarse to fine, carrying the starts along. Each finer couple also learns
+    from fresh tracking-like starts (between frames the tracker skips the coarsest couple, so a finer couple
+    must handle a frame's motion itself, not only what the coarser couples leave). Returns (couples, final
+    starts, the training fit each belongs to)."""
+    basis = sm.person_view()[0]
+    mean3d = np.ascontiguousarray(sm.mean)
+    mode = config.feature_spec.mode
+    couples = []
+    Pc = starts
+    spread = coefficient_spreads(sm)
     width = sm.frontal_width()
-    for i in progress(range(len(images)), desc="person update matrix", unit="img"):
-        r = octave_factor(fits[i].q[3] * width, face_px)
-        q_ext = np.r_[fits[i].q, fits[i].shape_params]
-        _accumulate_gradient(Octaves(to_gray32(images[i]), config.lcn_sigma).get(r), r, mean, basis, q_ext, free,
-                             steps, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, G, e0)
-    U, prior_step = update_matrix(G / len(images), prior := prior_weights(sm, free, t.frame.n_pixels,
-                                                                          config.prior))
-    return Couple(float(face_px), len(textures) - 1, U, free, prior_step, prior)
+    for k, (face_px, _) in enumerate(config.couples):
+        if k >= 1:
+            extra, extra_owner = perturbed_starts(P, free_all, np.zeros((0, len(free_all))), spread, width, lo, hi,
+                                                  n_per=max(1, config.n_starts // 2), rng=rng)
+            Pc, owner = np.vstack([Pc, extra]), np.r_[owner, extra_owner]
+        free = free_all[free_all < N_POSE] if k < config.pose_only_couples else free_all
+        t = textures[k]
+        Rs, bs = [], []
+        n0 = len(starts)
+        err_before = float(np.median(nme(_landmarks(sm, basis, Pc[:n0]), points[owner[:n0]])))
+        for s in progress(range(config.n_stages), desc=f"cascade couple {k + 1}", unit="stage"):
+            E = residual_matrix(feats[k], factors[k], [level_offset(r) for r in factors[k]], Pc, owner, mean3d,
+                                basis, t.mean, t.appearance, frames[k].pix_vid, frames[k].pix_bary, mode)
+            Y = inverse_compose(Pc, P[owner], free)
+            R, b, alpha = ridge_fit(E, Y, groups=owner_group[owner], rng=np.random.default_rng(config.seed + k))
+            P_next = compose_all(Pc, free, E @ R.T.astype(np.float64) + b, lo, hi)
+            err = float(np.median(nme(_landmarks(sm, basis, P_next[:n0]), points[owner[:n0]])))
+            log.info("couple %d stage %d: ridge %g, training starts' median NME %.4f -> %.4f", k, s, alpha,
+                     err_before, err)
+            if Rs and err > (1.0 - config.min_gain) * err_before:  # a stage that no longer pays is not kept
+                break
+            Pc, err_before = P_next, err
+            Rs.append(R)
+            bs.append(b)
+            record.append({"couple": k, "stage": s, "alpha": alpha, "train_nme_median": err})
+        couples.append(Couple(float(face_px), k, free.copy(), np.stack(Rs), np.stack(bs),
+                              np.zeros((len(free), 0), np.float32), np.zeros((0, 0)), np.zeros(0)))
+    return couples, Pc, owner
 
 
-def _residual_levels(images, fits, sm, textures, couples, config, *, n_images: int = 200,
-                     shift: float = 0.25) -> tuple[float, float]:
-    """Median RMS residual of the finest couple at the true fits (a good fit) and with the pose moved by
-    ``shift`` of the face width (a lost track): the ends of the confidence scale."""
-    from ..model import Model
-    from ..track.search import Searcher
+def _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress) -> list[Couple]:
+    """The poster's update matrices, G learned on training's octaves (``train.octaves``)."""
+    basis = sm.person_view()[0]
+    mean3d = np.ascontiguousarray(sm.mean)
+    width = sm.frontal_width()
+    mode = config.feature_spec.mode
+    steps_all = perturbation_steps(sm, person=True)
+    grads = [np.zeros((len(t.mean), len(free_all))) for t in textures]
+    for i in progress(range(len(gray)), desc="update matrices", unit="img"):
+        lv = Octaves(gray[i], config.feature_spec)
+        for k, (face_px, _) in enumerate(config.couples):
+            r = octave_factor(P[i, 3] * width, face_px)
+            e0 = np.empty(len(textures[k].mean))
+            _accumulate_gradient(lv.get(r), r, mean3d, basis, np.ascontiguousarray(P[i]), free_all, steps_all,
+                                 textures[k].mean, textures[k].appearance, frames[k].pix_vid, frames[k].pix_bary,
+                                 mode, grads[k], e0)
+    couples = []
+    for k, (face_px, _) in enumerate(config.couples):
+        cols = np.flatnonzero(free_all < N_POSE) if k < config.pose_only_couples else np.arange(len(free_all))
+        G = grads[k][:, cols] / len(gray)
+        prior = prior_weights(sm, free_all[cols], G.shape[0], config.prior)
+        U, prior_step = update_matrix(G, prior)
+        n = len(cols)
+        couples.append(Couple(float(face_px), k, free_all[cols].copy(), np.zeros((0, n, len(textures[k].mean)),
+                              np.float32), np.zeros((0, n)), U, prior_step, prior))
+    return couples
 
-    searcher = Searcher(Model(sm, tuple(textures), tuple(couples), {"lcn_sigma": config.lcn_sigma}))
-    rng = np.random.default_rng(1)
-    good, bad = [], []
-    for i in rng.permutation(len(images))[:n_images]:
-        lv = searcher.levels(images[i])
-        q = fits[i].q
-        good.append(searcher.residual(lv, q, fits[i].shape_params))
-        qb = q.copy()
-        ang = rng.uniform(0, 2 * np.pi)
-        qb[4:6] += shift * q[3] * sm.frontal_width() * np.array([np.cos(ang), np.sin(ang)])
-        bad.append(searcher.residual(lv, qb, fits[i].shape_params))
-    return float(np.median(good)), float(np.median(bad))
+
+def _validator(model: Model, feats_fine, factors_fine, P, Pfinal, owner, points, rng, config) -> Validator:
+    """Learn the fit validator (``train.validator``) on a subset of the training images."""
+    searcher = Searcher(model)
+    sm = model.shape
+    n = len(P)
+    width = sm.frontal_width()
+    sub = set(rng.permutation(n)[: config.validator_images].tolist())
+    X, y = [], []
+    err = nme(_landmarks(sm, searcher.basis, Pfinal), points[owner])
+    for m in range(len(Pfinal)):  # the cascade's own final fits, good and bad
+        i = owner[m]
+        if i in sub and (err[m] < 0.06 or err[m] > 0.10):
+            X.append(searcher.statistics(_Fixed(feats_fine[i]), Pfinal[m], factors_fine[i]))
+            y.append(float(err[m] < 0.06))
+    for i in sub:  # displaced, rescaled, turned
+        for _ in range(2):
+            p = P[i].copy()
+            ang = rng.uniform(0, 2 * np.pi)
+            p[4:6] += rng.uniform(0.33, 0.67) * p[3] * width * np.array([np.cos(ang), np.sin(ang)])
+            X.append(searcher.statistics(_Fixed(feats_fine[i]), p, factors_fine[i]))
+            y.append(0.0)
+        p = P[i].copy()
+        p[3] *= rng.choice([0.6, 1.6])
+        p[2] += rng.choice([-1.0, 1.0]) * rng.uniform(0.6, 1.2)
+        X.append(searcher.statistics(_Fixed(feats_fine[i]), p, factors_fine[i]))
+        y.append(0.0)
+    gray_shape = feats_fine[0].shape[1:]
+    for i in list(sub)[: max(1, len(sub) // 4)]:  # non-faces where a face would be
+        for img in non_face_images(gray_shape, rng):
+            X.append(searcher.statistics(_Fixed(model.features(img)), P[i], factors_fine[i]))
+            y.append(0.0)
+    X, y = np.array(X), np.array(y)
+    log.info("validator: %d positives, %d negatives", int(y.sum()), int(len(y) - y.sum()))
+    return logistic_fit(X, y, STAT_NAMES)
 
 
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
@@ -169,59 +310,75 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                 progress: Progress = _no_progress) -> tuple[Model, TrainReport]:
     """Train a model from grey or BGR images and their (n, 68, 2) landmarks."""
     t0 = time.perf_counter()
-    sm, fits = learn_shape(points, kind, candide=candide, config=config, progress=progress)
+    n_orig = len(images)
+    gray, pts = _augment(images, points, config.mirror)
+    sm, fits = learn_shape(pts, kind, candide=candide, config=config, progress=progress)
     t_shape = time.perf_counter() - t0
     log.info("shape fits: mean RMS %.2f px", np.mean([f.rms_px for f in fits]))
+    P = np.array([np.r_[f.q, f.shape_params] for f in fits])
+    basis, free_all, lo, hi = sm.person_view()
+    width = sm.frontal_width()
+    features = config.feature_spec
+
+    boxes = training_boxes(images, points)
+    box_points = box_geometry(boxes, np.asarray(points, float))
+    det = np.flatnonzero(np.isfinite(boxes[:, 0]))
+    log.info("Haar detector found %d of %d training faces", len(det), n_orig)
+    starts0 = np.array([np.r_[initial_pose(sm, guess_points(boxes[i], box_points)), np.zeros(sm.n_shape)]
+                        for i in det]).reshape(len(det), len(P[0]))
+    det_deltas = inverse_compose(P[det], starts0, free_all) if len(det) else np.zeros((0, len(free_all)))
+    t_det = time.perf_counter() - t0 - t_shape
+
     ref2d = sm.mean[:, :2] * np.array([1.0, -1.0])
     tris = texture_triangles(sm, config)
-    width = sm.frontal_width()
-    steps = perturbation_steps(sm)
-    free = sm.free
-    basis = np.ascontiguousarray(sm.basis)
-    couple_data = []
-    for face_px, tex_w in config.couples:
-        frame = texture_frame(ref2d, tris, tex_w)
-        couple_data.append([face_px, frame, []])
-    neutral = [np.ascontiguousarray(sm.neutral(f.shape_params)) for f in fits]
+    frames = [texture_frame(ref2d, tris, tex_w) for _, tex_w in config.couples]
+    factors = [[level_factor(P[i, 3] * width, F) for i in range(len(gray))] for F, _ in config.couples]
+    feats = [[None] * len(gray) for _ in config.couples]
+    mean3d = np.ascontiguousarray(sm.mean)
+    tex = [[] for _ in config.couples]
+    for i in progress(range(len(gray)), desc="textures", unit="img"):
+        lv = Levels(gray[i], features)
+        for k in range(len(config.couples)):
+            r = factors[k][i]
+            feats[k][i] = lv.get(r)
+            p = P[i].copy()
+            p[4:6] += level_offset(r)
+            tex[k].append(sample_texture(feats[k][i], r, mean3d, basis, p, frames[k], features.mode))
+    textures = [Texture(f, *learn_appearance(np.array(t), n_modes=config.n_appearance, mode=features.mode))
+                for f, t in zip(frames, tex)]
+    del tex
+    t_tex = time.perf_counter() - t0 - t_shape - t_det
 
-    def couple_images(i):
-        """(image at the couple's training octave, its factor, texture frame, q) per couple (see
-        ``track.pyramid``: training learns at the octave, tracking runs at exactly face_px)."""
-        lv = Octaves(to_gray32(images[i]), config.lcn_sigma)
-        for face_px, frame, _ in couple_data:
-            r = octave_factor(fits[i].q[3] * width, face_px)
-            yield lv.get(r), r, frame, fits[i].q
+    rng = np.random.default_rng(config.seed)
+    record = []
+    owner_group = np.arange(len(gray)) % n_orig  # an image and its mirror stay on one side of a hold-out split
+    starts, owner = perturbed_starts(P, free_all, det_deltas, coefficient_spreads(sm), width, lo, hi,
+                                     n_per=config.n_starts, rng=rng)
+    if config.update == "cascade":
+        couples, Pfinal, owner = _cascade_couples(feats, factors, P, pts, owner_group, starts, owner, sm, textures,
+                                                  frames, free_all, lo, hi, config, progress, record, rng)
+    else:
+        couples = _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress)
+        Pfinal = None
+    t_upd = time.perf_counter() - t0 - t_shape - t_det - t_tex
 
-    for i in progress(range(len(images)), desc="textures", unit="img"):
-        for (img, r, frame, q), cd in zip(couple_images(i), couple_data):
-            cd[2].append(sample_texture(img, r, neutral[i], basis, q, frame))
-    textures = []
-    for face_px, frame, tex in couple_data:
-        mean, app = learn_appearance(np.array(tex), n_modes=config.n_appearance)
-        textures.append(Texture(frame, mean, app))
-    t_tex = time.perf_counter() - t0 - t_shape
-    grads = [np.zeros((t.frame.n_pixels, len(free))) for t in textures]
-    for i in progress(range(len(images)), desc="update matrices", unit="img"):
-        for (img, r, frame, q), t, G in zip(couple_images(i), textures, grads):
-            e0 = np.empty(frame.n_pixels)
-            _accumulate_gradient(img, r, neutral[i], basis, q, free, steps, t.mean, t.appearance,
-                                 frame.pix_vid, frame.pix_bary, G, e0)
-    couples = []
-    n_pose = int(np.sum(free < N_POSE))
-    for k, (cd, G) in enumerate(zip(couple_data, grads)):
-        cols = np.arange(n_pose) if k < config.pose_only_couples else np.arange(len(free))
-        prior = prior_weights(sm, free[cols], G.shape[0], config.prior)
-        U, prior_step = update_matrix(G[:, cols] / len(images), prior)
-        couples.append(Couple(float(cd[0]), k, U, free[cols].copy(), prior_step, prior))
-    couples = tuple(couples)
-    person = _person_couple(images, fits, sm, textures, config, progress) if sm.n_shape else None
-    t_upd = time.perf_counter() - t0 - t_shape - t_tex
-    box_points, n_detected = calibrate_detector(images, points)
-    log.info("Haar detector found %d of %d training faces", n_detected, len(images))
-    good, bad = _residual_levels(images, fits, sm, textures, couples, config)
-    timings = {"shape_s": t_shape, "texture_s": t_tex, "update_s": t_upd,
-               "calibration_s": time.perf_counter() - t0 - t_shape - t_tex - t_upd}
-    cfg = {**asdict(config), "n_images": len(images), "kind": kind, "residual_good": good, "residual_bad": bad,
-           "detector_box_points": box_points.round(5).tolist(), "detector_images": n_detected}
-    model = Model(shape=sm, textures=tuple(textures), couples=couples, config=cfg, person=person)
-    return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits]), timings)
+    dummy = Validator(STAT_NAMES, np.zeros(len(STAT_NAMES)), np.zeros(len(STAT_NAMES)), np.ones(len(STAT_NAMES)), 0.0)
+    model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
+                  detector_box_points=box_points, validator=dummy)
+    if Pfinal is None:  # Jacobian models: the validator learns from the search run on the same starts
+        searcher = Searcher(model)
+        Pfinal = np.array([searcher.fit(_Fixed(feats[-1][i]), starts[m], factors=[f[i] for f in factors]).p
+                           for m, i in enumerate(owner)])
+    validator = _validator(model, feats[-1], factors[-1], P, Pfinal, owner, pts, rng, config)
+    final_err = nme(_landmarks(sm, basis, Pfinal), pts[owner])
+    n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
+    t_val = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd
+    timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val}
+    cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
+           "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
+           "train_final_nme_median": float(np.median(final_err[:n0])), "timings": timings}
+    log.info("training starts: median NME %.4f -> %.4f after the search", cfg["train_start_nme_median"],
+             cfg["train_final_nme_median"])
+    model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
+                  detector_box_points=box_points, validator=validator, config=cfg)
+    return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

@@ -12,8 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh.landmarks import similarity_fit
-from ..mesh.shape_model import N_POSE, ShapeModel
+from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
 
 LAMBDA_SHAPE = 1e-3
 LAMBDA_COEF = 1e-4
@@ -36,18 +35,6 @@ def _unpack(x, sm: ShapeModel, free_pose, fit_sigma, sigma_fixed):
     q[N_POSE:] = x[n_p:n_p + sm.n_coef]
     sigma = x[n_p + sm.n_coef:] if fit_sigma else sigma_fixed
     return q, sigma
-
-
-def initial_pose(sm: ShapeModel, points: np.ndarray, shape_params=None) -> np.ndarray:
-    """q with a frontal similarity pose (rx = ry = 0) fitted to the points, coefficients 0."""
-    frontal = sm.landmark_map @ sm.neutral(shape_params)
-    dst = np.column_stack([points[:, 0], -points[:, 1]])
-    s, R, t = similarity_fit(frontal[:, :2], dst)
-    q = np.zeros(sm.n_q)
-    q[2] = np.arctan2(R[0, 1], R[0, 0])
-    q[3] = s
-    q[4], q[5] = t[0], -t[1]
-    return q
 
 
 def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarray | None = None,

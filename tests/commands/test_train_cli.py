@@ -14,7 +14,7 @@ def dataset(tmp_path, synth_data):
     images, points = synth_data
     d = tmp_path / "data"
     d.mkdir()
-    for i, (img, pts) in enumerate(zip(images[:12], points[:12])):
+    for i, (img, pts) in enumerate(zip(images[:12], points[:12], strict=True)):
         cv2.imwrite(str(d / f"face{i:02d}.png"), img)
         if i % 2:
             write_pts(d / f"face{i:02d}.pts", pts)
@@ -77,9 +77,10 @@ def test_unreadable_image(tmp_path, dataset, capsys):
     assert not out.exists()
 
 
-def test_bad_couples(tmp_path, dataset, capsys):
+@pytest.mark.parametrize("couples", ["32:64", "4096:4096", "abc", "64:32,", "0:0"])
+def test_bad_couples(tmp_path, dataset, capsys, couples):
     out = tmp_path / "m.npz"
-    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "32:64"]) == 1
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", couples]) == 1
     _one_line_error(capsys, "--couples")
 
 
@@ -89,3 +90,93 @@ def test_3d_without_candide_mesh(tmp_path, dataset, capsys, monkeypatch):
     assert main(["train", "--data", str(dataset), "--kind", "3d", "--out", str(out)]) == 1
     _one_line_error(capsys, "--candide")
     assert not out.exists()
+
+
+def test_pts_of_another_image_size(tmp_path, dataset, capsys):
+    from aamtrack.io.pts import read_pts
+
+    pts = read_pts(dataset / "face06.pts")
+    write_pts(dataset / "face06.pts", pts * 3.0)  # the markup of the same face in a 3x larger copy
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "face06.pts", "outside the 220x220 image")
+    assert not out.exists()
+
+
+def test_tiny_image(tmp_path, dataset, capsys):
+    cv2.imwrite(str(dataset / "face02.png"), np.zeros((1, 1), np.uint8))
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "face02.png", "1x1 px, too small")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("points", [np.full((68, 2), 50.0),  # all on one point
+                                    np.column_stack([np.linspace(20, 200, 68), np.full(68, 100.0)])])  # a line
+def test_degenerate_points(tmp_path, dataset, capsys, points):
+    write_pts(dataset / "face07.pts", points)
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "face07.pts", "degenerate landmarks")
+    assert not out.exists()
+
+
+def test_numerical_failure_in_training_is_one_line(tmp_path, dataset, capsys, monkeypatch):
+    def svd_fails(*a, **kw):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr("aamtrack.commands.train.train_model", svd_fails)
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "SVD did not converge", "training failed")
+    assert not out.exists()
+
+
+def test_report_in_a_missing_folder_fails_before_training(tmp_path, dataset, capsys, monkeypatch):
+    monkeypatch.setattr("aamtrack.commands.train.train_model", lambda *a, **kw: pytest.fail("trained"))
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out),
+                 "--report", str(tmp_path / "nope" / "fit.csv")]) == 1
+    _one_line_error(capsys, "nope", "does not exist")
+    assert not out.exists()
+
+
+def test_report_failing_after_the_model_leaves_no_model(tmp_path, dataset, capsys, monkeypatch):
+    from faults import disk_full, files_below
+
+    (tmp_path / "models").mkdir()
+    (tmp_path / "reports").mkdir()
+    out = tmp_path / "models" / "m.npz"
+    out.write_bytes(b"the previous model")
+    disk_full(monkeypatch, tmp_path / "reports", 0)  # the report's disk is full, the model's is not
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "32:16",
+                 "--report", str(tmp_path / "reports" / "fit.csv")]) == 1
+    _one_line_error(capsys, "fit.csv", "no space left")
+    assert out.read_bytes() == b"the previous model"  # untouched, and no new model beside it
+    assert files_below(tmp_path / "models") == ["m.npz"] and files_below(tmp_path / "reports") == []
+
+
+def test_too_little_disk_space_fails_before_training(tmp_path, dataset, capsys, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage(10**9, 10**9 - 300_000, 300_000))
+    monkeypatch.setattr("aamtrack.commands.train.train_model", lambda *a, **kw: pytest.fail("trained"))
+    out = tmp_path / "m.npz"
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out)]) == 1
+    _one_line_error(capsys, "0.3 MB free", "may need up to")
+    assert not out.exists()
+
+
+def test_without_out_writes_a_new_file_in_the_current_folder(tmp_path, dataset, capsys, monkeypatch):
+    work = tmp_path / "work"
+    (work / "models").mkdir(parents=True)
+    shipped = work / "models" / "2d.npz"  # as in the repository root: the old default target
+    shipped.write_bytes(b"shipped")
+    (work / "aamtrack_2d.npz").write_bytes(b"an earlier model")
+    monkeypatch.chdir(work)
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--couples", "32:16,64:24"]) == 0
+    assert shipped.read_bytes() == b"shipped" and (work / "aamtrack_2d.npz").read_bytes() == b"an earlier model"
+    assert load_model(work / "aamtrack_2d_2.npz").kind == "2d"  # numbered past the existing file
+    assert "aamtrack_2d_2.npz" in capsys.readouterr().out

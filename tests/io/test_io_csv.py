@@ -49,7 +49,7 @@ def test_round_trip(tmp_path, with_3d):
         rows = list(csv.reader(f))
     assert rows[0] == csv_columns(anim_names=ANIM, shape_names=SHAPE, with_3d=with_3d)
     assert len(rows) == 1 + len(results)  # exactly one row per FrameResult
-    for row, r in zip(rows[1:], results):
+    for row, r in zip(rows[1:], results, strict=True):
         if not r.success:  # success 0, then nothing but empty fields after the confidence
             assert row[2] == "0" and row[6:] == [""] * (len(row) - 6)
 

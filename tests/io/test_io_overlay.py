@@ -28,8 +28,11 @@ def test_draw_result_marks_the_face():
     blank = np.zeros((HEIGHT, WIDTH, 3), np.uint8)
     drawn = draw_result(blank.copy(), _result(rng), mesh_edges(triangles))
     assert (drawn.sum(axis=2) > 0).mean() > 0.05  # mesh and dots cover part of the frame
-    lost = draw_result(blank.copy(), FrameResult(frame=1, timestamp=0.1, status="lost"))
-    assert 0 < (lost.sum(axis=2) > 0).mean() < 0.05  # only the small status text
+    lost = draw_result(blank.copy(), FrameResult(frame=1, timestamp=0.1, status="lost", reason="no face detected"))
+    banner = lost[:max(24, round(0.13 * HEIGHT))]
+    assert (banner[..., 2] > 150).mean() > 0.7  # a red band across the whole width (white text on it)
+    assert (lost[HEIGHT // 2, :, 2] > 150).sum() >= 2  # the red border reaches down the sides
+    assert not lost[50:-4, 8:-8].any()  # below the banner and the status box the picture stays uncovered
 
 
 @pytest.mark.parametrize("suffix", [".mp4", ".avi"])
@@ -42,9 +45,12 @@ def test_writes_readable_video(tmp_path, suffix):
         for i, r in enumerate(results):
             image = None if r.status == "unreadable" else index_image(i, rng, size=(2 * WIDTH, 2 * HEIGHT))
             writer.write(image, r)  # other-size images are resized; None gives a black frame
-    assert writer.path == path and writer.n_frames == 11
-    assert list(tmp_path.iterdir()) == [path]  # temporary renamed
-    with open_frames(path) as source:
+    # .mp4 asks for a browser-playable codec: H.264 where OpenCV has it, else VP8 in .webm, else mp4v
+    expected = {".mp4": {("overlay.mp4", "avc1"), ("overlay.webm", "VP80"), ("overlay.mp4", "mp4v")},
+                ".avi": {("overlay.avi", "MJPG")}}[suffix]
+    assert (writer.path.name, writer.fourcc) in expected and writer.n_frames == 11
+    assert list(tmp_path.iterdir()) == [writer.path]  # temporary renamed
+    with open_frames(writer.path) as source:
         assert (source.width, source.height, source.fps) == (WIDTH, HEIGHT, 25.0)
         frames = list(source)
     assert len(frames) == 11 and all(f.image is not None for f in frames)
@@ -59,3 +65,17 @@ def test_exception_leaves_nothing(tmp_path):
     assert not list(tmp_path.iterdir())
     with pytest.raises(ValueError, match="closed"):
         writer.write(index_image(1, rng), _result(rng))
+
+
+def test_pose_axes_follow_the_model_rotation():
+    from aamtrack.io.overlay import axes_endpoints
+
+    rng = np.random.default_rng(SEED)
+    landmarks = np.column_stack([rng.uniform(100, 200, 68), rng.uniform(50, 150, 68)])
+    ends = axes_endpoints(landmarks, np.zeros(3))  # frontal: x right, y up (image y down), z towards the camera
+    half = 0.5 * np.ptp(landmarks[:, 0])
+    assert np.allclose(ends[0], landmarks[30])
+    assert np.allclose(ends[1:] - ends[0], [[half, 0], [0, -half], [0, 0]])
+    ends = axes_endpoints(landmarks, np.array([0.0, 0.0, np.pi / 2]))  # rolled 90 degrees: x points up
+    assert np.allclose(ends[1] - ends[0], [0, -half])
+    assert axes_endpoints(np.full((68, 2), np.nan), np.zeros(3)) is None

@@ -5,7 +5,10 @@ import pytest
 from scipy.ndimage import map_coordinates
 from scipy.spatial.transform import Rotation
 
-from aamtrack._kernels.warp import _compose, _normalize, _project, _warp
+from aamtrack._kernels.features import gradient_features
+from aamtrack._kernels.warp import (_cascade, _compose, _normalize, _prior_cost, _project, _residual,
+                                   _residual_batch, _search, _warp)
+from aamtrack.train.cascade import inverse_compose
 from conftest import SEED
 
 
@@ -28,12 +31,14 @@ def test_warp_matches_map_coordinates():
     verts = np.array([[10.0, 5.0], [70.0, 12.0], [30.0, 50.0], [65.5, 55.25]])
     vid = rng.integers(0, 4, (500, 3)).astype(np.int32)
     bary = rng.dirichlet([1, 1, 1], 500).astype(np.float32)
-    out = np.empty(500, np.float32)
+    out = np.empty(1000, np.float32)
+    image2 = np.stack([image, 255 - 2 * image])  # two channels, sampled at the same positions
     for scale in (1.0, 0.5):
-        _warp(image, verts, scale, vid, bary, out)
+        _warp(image2, verts, scale, vid, bary, out)
         pos = scale * np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
-        ref = map_coordinates(image.astype(float), [pos[:, 1], pos[:, 0]], order=1)
-        assert np.abs(out - ref).max() < 1e-3  # bilinear, float32
+        for ch in range(2):
+            ref = map_coordinates(image2[ch].astype(float), [pos[:, 1], pos[:, 0]], order=1)
+            assert np.abs(out[ch * 500:(ch + 1) * 500] - ref).max() < 1e-3  # bilinear, float32, channel-major
 
 
 def test_warp_clamps_outside_samples():
@@ -42,7 +47,7 @@ def test_warp_clamps_outside_samples():
     vid = np.array([[0, 0, 0], [1, 1, 1]], np.int32)
     bary = np.array([[1, 0, 0], [1, 0, 0]], np.float32)
     out = np.empty(2, np.float32)
-    assert _warp(image, verts, 1.0, vid, bary, out) == 2
+    assert _warp(image[None], verts, 1.0, vid, bary, out) == 2
     assert out.tolist() == [0.0, 11.0]  # nearest corners
 
 
@@ -71,3 +76,149 @@ def test_compose_clips_to_bounds():
     hi[6] = 1.0
     _compose(q, np.array([6]), np.array([0.5]), 1.0, lo, hi, out)
     assert out[6] == 1.0
+
+
+def _slow_gradient_features(gray, soft, eps):
+    """Sobel / 8 with edge replication, then g / (|g| + soft mean|g| + eps): the obvious numpy version."""
+    g = np.pad(gray.astype(float), 1, mode="edge")
+    H, W = gray.shape
+    sl = lambda dy, dx: g[1 + dy:1 + dy + H, 1 + dx:1 + dx + W]  # noqa: E731
+    gx = (sl(-1, 1) - sl(-1, -1) + 2 * (sl(0, 1) - sl(0, -1)) + sl(1, 1) - sl(1, -1)) / 8.0
+    gy = (sl(1, -1) - sl(-1, -1) + 2 * (sl(1, 0) - sl(-1, 0)) + sl(1, 1) - sl(-1, 1)) / 8.0
+    # the kernel takes one-sided differences at the border (half the span): match it there
+    gx[:, 0] *= 2
+    gx[:, -1] *= 2
+    gy[0, :] *= 2
+    gy[-1, :] *= 2
+    mag = np.hypot(gx, gy)
+    d = mag + soft * mag.mean() + eps
+    return np.stack([gx / d, gy / d])
+
+
+def test_gradient_features_match_reference():
+    gray = np.random.default_rng(SEED).uniform(0, 255, (30, 41)).astype(np.float32)
+    for soft, eps in ((0.0, 1.0), (1.0, 1.0), (2.0, 0.0)):
+        ref = _slow_gradient_features(gray, soft, eps)
+        assert np.abs(gradient_features(gray, soft=soft, eps=eps) - ref).max() < 1e-5  # float32
+
+
+def test_gradient_features_of_flat_and_affine_images():
+    flat = np.full((20, 20), 77.0, np.float32)
+    assert np.abs(gradient_features(flat)).max() == 0.0  # no gradient, no orientation
+    gray = np.random.default_rng(SEED).uniform(0, 255, (20, 20)).astype(np.float32)
+    a = gradient_features(gray, soft=1.0, eps=0.0)
+    b = gradient_features(3.0 * gray + 40.0, soft=1.0, eps=0.0)
+    assert np.abs(a - b).max() < 1e-5  # invariant to gain and offset of the grey levels
+
+
+def _toy_problem(rng, n_ch=2):
+    """A random mesh over an image, the texture of one parameter vector as the mean: (arrays for the kernels)."""
+    image = rng.uniform(-1, 1, (n_ch, 80, 90)).astype(np.float32)
+    shape3d = np.array([[-1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, -1.0, 0.0]])
+    basis = rng.normal(0, 0.1, (1, 4, 3))
+    vid = np.array([[0, 1, 2]] * 150 + [[0, 2, 3]] * 150, np.int32)
+    bary = rng.dirichlet([2, 2, 2], 300).astype(np.float32)
+    q = np.r_[0.0, 0.0, 0.2, 20.0, 45.0, 40.0, 0.3]
+    return image, shape3d, basis, vid, bary, q
+
+
+def _slow_residual(image, shape3d, basis, q, mean, app, vid, bary, mode):
+    verts = np.empty((len(shape3d), 2))
+    _project(shape3d, basis, q, verts)
+    pos = np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
+    tex = np.concatenate([map_coordinates(ch.astype(float), [pos[:, 1], pos[:, 0]], order=1, mode="nearest")
+                          for ch in image])
+    N = len(vid)
+    if mode == 0:
+        tex = (tex - tex.mean()) / tex.std()
+    else:
+        c, s = np.cos(q[2]), np.sin(q[2])
+        gx, gy = tex[:N].copy(), tex[N:].copy()
+        tex = np.r_[c * gx - s * gy, s * gx + c * gy]
+    e = tex - mean
+    e = e - app @ (app.T @ e)
+    return e, float(e @ e / len(e))
+
+
+@pytest.mark.parametrize("mode,n_ch", [(0, 1), (1, 2)])
+def test_residual_matches_reference(mode, n_ch):
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng, n_ch)
+    D = n_ch * len(vid)
+    mean = rng.normal(0, 1, D).astype(np.float32)
+    app = np.linalg.qr(rng.normal(0, 1, (D, 3)))[0].astype(np.float32)
+    e = np.empty(D)
+    err = _residual(image, 1.0, shape3d, basis, q, mean, app, vid, bary, mode, np.empty((4, 2)),
+                    np.empty(D, np.float32), np.empty(3), e)
+    e_ref, err_ref = _slow_residual(image, shape3d, basis, q, mean.astype(float), app.astype(float), vid, bary, mode)
+    assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
+    E = np.empty((2, D), np.float32)
+    _residual_batch(image, 1.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
+    assert np.abs(E - e_ref).max() < 1e-4  # the batch is the same residual, row by row
+
+
+def test_prior_cost():
+    q = np.r_[0.1, 0.2, 0.3, 4.0, 5.0, 6.0, 0.5, -2.0]
+    assert _prior_cost(q, np.array([2, 6, 7]), np.array([0.0, 3.0, 0.5])) == pytest.approx(3 * 0.25 + 0.5 * 4.0)
+
+
+def test_inverse_compose_undoes_compose():
+    rng = np.random.default_rng(SEED)
+    free = np.arange(8)
+    inf = np.full(8, np.inf)
+    for _ in range(20):
+        q = np.r_[rng.normal(0, 0.3, 3), rng.uniform(5, 50), rng.uniform(0, 300, 2), rng.normal(0, 1, 2)]
+        delta = rng.normal(0, 0.2, 8)
+        out = np.empty(8)
+        _compose(q, free, delta, 1.0, -inf, inf, out)
+        assert np.abs(inverse_compose(q, out, free)[0] - delta).max() < 1e-9  # exact up to rounding
+
+
+def test_cascade_applies_each_stage_once():
+    """With R = 0 every stage moves p by its bias alone: the cascade composes the stages in order."""
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng)
+    D = 2 * len(vid)
+    free = np.array([4, 5, 6])
+    R = np.zeros((3, 3, D), np.float32)
+    b = np.array([[0.1, 0.0, 0.05], [0.0, -0.2, 0.05], [0.1, 0.1, 0.0]])
+    p = q.copy()
+    lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
+    _cascade(image, 1.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32),
+             np.zeros((D, 0), np.float32), vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0),
+             np.empty(D), np.empty(3))
+    ref = q.copy()
+    for s in range(3):
+        _compose(ref.copy(), free, b[s], 1.0, lo, hi, ref)
+    assert np.abs(p - ref).max() < 1e-12
+
+
+def test_search_reaches_a_known_minimum():
+    """The Jacobian search from a start moved along one parameter, with U the exact inverse of a numerical
+    gradient of the toy residual, returns to the parameters whose texture is the mean."""
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng, 1)
+    import cv2
+
+    image = cv2.GaussianBlur(image[0], (0, 0), 4.0)[None]  # smooth, so the linearisation holds
+    D = len(vid)
+    tex = np.empty(D, np.float32)
+    e = np.empty(D)
+    no_app = np.zeros((D, 0), np.float32)
+    args = (np.empty((4, 2)), tex, np.empty(0), e)
+    _residual(image, 1.0, shape3d, basis, q, np.zeros(D, np.float32), no_app, vid, bary, 0, *args)
+    mean = tex.copy()
+    free = np.array([4, 5])
+    G = np.empty((D, 2))
+    for a in range(len(free)):
+        qp = q.copy()
+        _compose(q, free, np.eye(2)[a] * 0.01, 1.0, np.full(7, -np.inf), np.full(7, np.inf), qp)
+        _residual(image, 1.0, shape3d, basis, qp, mean, no_app, vid, bary, 0, *args)
+        G[:, a] = e / 0.01
+    U = (-np.linalg.pinv(G)).astype(np.float32)
+    start = q.copy()
+    start[4] += 0.6  # pixels
+    lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
+    _search(image, 1.0, shape3d, basis, start, free, lo, hi, U, np.zeros((2, 2)), np.zeros(2), mean, no_app, vid,
+            bary, 0, 30, 1e-6, 4, np.full(2, 1e-6))
+    assert np.abs(start[4:6] - q[4:6]).max() < 0.05  # back to the true translation within 1/20 pixel

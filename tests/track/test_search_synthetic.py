@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from aamtrack.track.search import Searcher
+from aamtrack.imaging import to_gray32
+from aamtrack.search import Searcher
 from aamtrack.train.shape_fit import fit_landmarks
 from conftest import SEED
 import synth
@@ -21,7 +22,7 @@ def test_search_recovers_true_landmarks(synth_model):
         q0[4:6] += 0.05 * width * np.array([np.cos(1.0), np.sin(1.0)])  # 5% of the face width
         q0[2] += np.radians(5.0)
         q0[3] *= 1.04
-        res = searcher.fit(img, q0)
+        res = searcher.fit(searcher.levels(to_gray32(img)), q0)
         before.append(np.linalg.norm(sm.landmarks(q0) - pts, axis=1).mean())
         after.append(np.linalg.norm(res.landmarks - pts, axis=1).mean())
         floor.append(np.linalg.norm(sm.landmarks(truth.q) - pts, axis=1).mean())

@@ -90,3 +90,47 @@ def synth_frame(i, image):
     from aamtrack.track.replay import ReplayFrame
 
     return ReplayFrame(i, i / 25.0, image)
+
+
+def test_blank_frames_are_never_tracked(synth_model):
+    """A run of black, grey, uniform-colour and noise frames in the middle of a video: each is reported lost
+    (the validator rejects the fit that starts from the last face), and tracking comes back after the gap."""
+    from aamtrack.track.replay import ReplayFrame
+
+    frames, _ = synth.moving_face_frames(24)
+    h, w = frames[0].shape[:2]
+    rng = np.random.default_rng(3)
+    blanks = [np.zeros((h, w, 3), np.uint8), np.full((h, w, 3), 128, np.uint8),
+              np.full((h, w, 3), (60, 120, 200), np.uint8), rng.integers(0, 256, (h, w, 3), dtype=np.uint8)]
+    video = frames[:8] + blanks * 2 + frames[16:]
+    results = list(Tracker(synth_model).track(ReplayFrame(i, i / 25, f) for i, f in enumerate(video)))
+    assert all(r.success for r in results[:8])
+    assert all(not r.success for r in results[8:16])  # no blank frame reported tracked
+    assert all(r.confidence < 0.5 for r in results[8:16])
+    assert all(r.success for r in results[17:])  # back on the face within a frame of the gap's end
+
+
+def test_loss_reasons(synth_model):
+    """Each loss check on its own: confidence, landmarks inside the frame, one-frame turn and rescale."""
+    from dataclasses import replace
+
+    from aamtrack.track.result import FitResult
+
+    tracker = Tracker(synth_model)
+    cfg = tracker.config
+    p = np.r_[0.0, 0.0, 0.1, 100.0, 110.0, 110.0, np.zeros(synth_model.n_params - 6)]
+    inside = np.column_stack([np.linspace(60, 160, 68), np.linspace(60, 160, 68)])
+    good = FitResult(p=p, landmarks=inside, vertices=inside, residual=0.1, confidence=0.9)
+    assert tracker.loss_reason(good, (220, 220), p) == ""
+    assert "low confidence" in tracker.loss_reason(replace(good, confidence=cfg.min_confidence - 0.01),
+                                                   (220, 220), p)
+    outside = inside.copy()
+    outside[: int(0.4 * 68), 0] = -5.0  # 40% of the points left of the frame
+    assert "inside the frame" in tracker.loss_reason(replace(good, landmarks=outside), (220, 220), p)
+    turned = p.copy()
+    turned[1] += cfg.max_turn + 0.05
+    assert "turned" in tracker.loss_reason(replace(good, p=turned), (220, 220), p)
+    assert tracker.loss_reason(replace(good, p=turned), (220, 220), None) == ""  # no previous frame: no jump test
+    grown = p.copy()
+    grown[3] *= np.exp(cfg.max_rescale + 0.05)
+    assert "rescaled" in tracker.loss_reason(replace(good, p=grown), (220, 220), p)

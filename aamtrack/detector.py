@@ -1,7 +1,7 @@
 """Face localisation for the first frame and after a loss (poster, "Face localization"): OpenCV's Haar
 frontal face detector (the cascade shipped in the opencv wheel), the largest face, and a rough pose fitted to
 feature points guessed from the box. Where the points sit in a Haar box is learned at training time
-(``calibrate_detector``: mean of the annotated landmarks in box units over the training images)."""
+(``aamtrack.train.detection``: mean of the annotated landmarks in box units over the training images)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from .errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -57,24 +57,3 @@ def guess_points(box, box_points: np.ndarray) -> np.ndarray:
     """(68, 2) landmarks guessed from a box with the learned mean positions ``box_points`` (box units)."""
     x, y, w, h = box
     return np.column_stack([x + w * box_points[:, 0], y + h * box_points[:, 1]])
-
-
-def calibrate_detector(images, points: np.ndarray, detector: HaarDetector | None = None) -> tuple[np.ndarray, int]:
-    """Mean landmark positions in Haar-box units over the images where the detector finds the annotated face
-    (box centre within a quarter box of the landmarks' centre). Returns ((68, 2), number of images used)."""
-    detector = detector or HaarDetector()
-    rel = []
-    for img, pts in zip(images, points):
-        gray = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        centre = pts.mean(0)
-        for x, y, w, h in detector.detect_all(gray):
-            if np.hypot(x + w / 2 - centre[0], y + h / 2 - centre[1]) < 0.25 * w:
-                rel.append(np.column_stack([(pts[:, 0] - x) / w, (pts[:, 1] - y) / h]))
-                break
-    if not rel:  # e.g. synthetic faces: fall back to the landmarks' own square box (logged)
-        log.warning("the Haar detector found none of the training faces; box geometry taken from the landmarks")
-        for pts in points:
-            c, side = pts.mean(0), np.ptp(pts, axis=0).max()
-            rel.append((pts - (c - side / 2)) / side)
-        return np.mean(rel, axis=0), 0
-    return np.mean(rel, axis=0), len(rel)

@@ -1,11 +1,17 @@
-"""Image resolutions for the couples (image resolution x texture resolution), defined relative to the face.
+"""What the couples see of an image: its resolution (relative to the face) and its features.
+
+Shared by training and tracking, so it sits below both (``train`` and ``track`` import it; it imports only
+``_kernels``). Feature images (``Features``): grey levels with local contrast normalisation (one channel), or
+edge-structure gradient orientations (two channels, ``aamtrack._kernels.features``).
+
+Resolutions for the couples (image resolution x texture resolution), defined relative to the face.
 
 When tracking, a couple with ``face_px = F`` runs on the image resampled (area interpolation) by
 r = min(1, F / face_px), so the face is F pixels wide there whatever its size in the frame (never upsampled: a
 smaller face is used as it is), and the contrast normalisation and texture sampling see every face at the same
 pixel scale. (With dyadic octaves for tracking too, a 240-pixel face and a 120-pixel face ran the finest couple
 at scales 2x apart, and cap12 upscaled to 640x480 lost 5 frames, 40 above NME 0.10; now none.) Training learns
-each couple on dyadic octaves instead (``Octaves``, at the end of this module), which measured better.
+each couple on dyadic octaves instead (``aamtrack.train.octaves``), which measured better.
 
 ``cv2.resize`` maps a source coordinate x to ``r * x + (0.5 * r - 0.5)``; the search folds the constant into the
 translation (``level_offset``) so the kernels keep the plain ``scale * x`` of their convention.
@@ -15,8 +21,56 @@ from __future__ import annotations
 
 import math
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
+
+from ._kernels.features import gradient_features
+
+FEATURE_KINDS = ("intensity", "gradient")
+
+
+@dataclass(frozen=True)
+class Features:
+    """The feature image of a resampled grey image, channel-major (C, H, W) float32.
+
+    kind : "intensity" (C = 1: grey levels, local contrast normalised over ``lcn_sigma`` pixels, 0 = none; the
+        warped texture is then z-normalised) or "gradient" (C = 2: edge-structure gradient orientations,
+        damped by ``soft`` * mean |g| + ``eps`` grey levels; turned into the face's axes after warping).
+    blur : Gaussian sigma (pixels of the level) applied to the gradient channels: the texture map samples the
+        level every 1.5 to 3 pixels, and pooling the orientations over about that span (as HOG's cells do)
+        keeps the samples from aliasing.
+    """
+
+    kind: str = "gradient"
+    lcn_sigma: float = 8.0
+    soft: float = 1.0
+    eps: float = 1.0
+    blur: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in FEATURE_KINDS:
+            raise ValueError(f"unknown feature kind {self.kind!r} (known: {', '.join(FEATURE_KINDS)})")
+
+    @property
+    def channels(self) -> int:
+        return 1 if self.kind == "intensity" else 2
+
+    @property
+    def mode(self) -> int:
+        """The kernels' texture mode (``aamtrack._kernels.warp._finish_texture``)."""
+        return 0 if self.kind == "intensity" else 1
+
+    def __call__(self, img: np.ndarray) -> np.ndarray:
+        if self.kind == "intensity":
+            out = local_contrast(img, self.lcn_sigma) if self.lcn_sigma > 0 else img
+            return np.ascontiguousarray(out, dtype=np.float32)[None]
+        out = gradient_features(img, soft=self.soft, eps=self.eps)
+        if self.blur > 0:
+            for ch in out:
+                cv2.GaussianBlur(ch, (0, 0), self.blur, dst=ch, borderType=cv2.BORDER_REPLICATE)
+        return out
 
 
 def to_gray32(image: np.ndarray) -> np.ndarray:
@@ -49,12 +103,12 @@ def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:
 
 
 class Levels:
-    """The images one frame (or crop) offers the couples: ``get(r)`` resamples by r and contrast-normalises
-    (``lcn_sigma`` pixels of the resampled image; 0 for none), once per factor."""
+    """The images one frame (or crop) offers the couples: ``get(r)`` resamples by r and computes the feature
+    image (C, h, w) float32, once per factor."""
 
-    def __init__(self, gray: np.ndarray, lcn_sigma: float = 0.0):
+    def __init__(self, gray: np.ndarray, features: Features):
         self.gray = np.ascontiguousarray(gray, dtype=np.float32)
-        self.lcn_sigma = float(lcn_sigma)
+        self.features = features
         self._cache: dict[float, np.ndarray] = {}
         self._raw: dict[float, np.ndarray] = {1.0: self.gray}
 
@@ -81,38 +135,5 @@ class Levels:
     def get(self, r: float) -> np.ndarray:
         img = self._cache.get(r)
         if img is None:
-            img = self._resampled(min(r, 1.0))
-            if self.lcn_sigma > 0:
-                img = local_contrast(img, self.lcn_sigma)
-            img = np.ascontiguousarray(img, dtype=np.float32)
-            self._cache[r] = img
+            img = self._cache[r] = self.features(self._resampled(min(r, 1.0)))
         return img
-
-
-# Training's resolutions. Models learn each couple on the coarsest dyadic octave (cv2.pyrDown) at which the face
-# is still at least F pixels wide -- on helen's ~200-pixel faces, about 2F for the finest couple -- and track at
-# exactly F (``level_factor``). Learning at F too was measured worse: cap12 mean NME 0.047 -> 0.049 (max 0.085 ->
-# 0.17) at 400x300, 0.048 -> 0.060 at 640x480; so was learning at ~1.5 F with couples (48, 96, 192).
-
-
-def octave_for(face_px: float, couple_face_px: float, n_octaves: int = 8) -> int:
-    """Coarsest octave at which a face ``face_px`` wide stays at least ``couple_face_px`` wide."""
-    if not np.isfinite(face_px) or face_px <= couple_face_px:
-        return 0
-    return int(min(max(math.floor(math.log2(face_px / couple_face_px)), 0), n_octaves - 1))
-
-
-class Octaves(Levels):
-    """Training's images: ``get(r)`` for r = 2**-o is octave o (cv2.pyrDown o times, no half-pixel offset),
-    contrast-normalised as in ``Levels``. ``octave_factor`` gives r."""
-
-    def _resampled(self, r: float) -> np.ndarray:
-        img = self._raw.get(r)
-        if img is None:
-            img = self._raw[r] = cv2.pyrDown(self._resampled(2.0 * r))  # octave o from octave o - 1
-        return img
-
-
-def octave_factor(face_px: float, couple_face_px: float) -> float:
-    """The resampling factor 2**-o of training's octave for a couple."""
-    return 0.5 ** octave_for(face_px, couple_face_px)

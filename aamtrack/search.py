@@ -1,0 +1,155 @@
+"""Multi-resolution active search on one image (below ``train`` and ``track``: training evaluates its fits and
+learns the fit validator with the same code that tracks) (poster, "Multi-Resolution Active Model Search"): for each
+couple, coarse to fine, warp, residual, delta = R e, p <- p + delta, in compiled code: the learned cascade
+(``aamtrack._kernels.warp._cascade``) or the Jacobian update with step control (``_search``).
+
+The search vector p is [pose, coefficients, shape units] (``Model``); ``shape_params`` given to ``fit`` pins the
+shape units (the tracker's held estimate of the person) by setting both their bounds to it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._kernels.warp import _cascade, _project, _residual, _search
+from .imaging import Levels, level_factor, level_offset
+from .mesh.shape_model import N_POSE
+from .model import Model
+from .track.result import FitResult
+
+MAX_ITER = 30
+TOL = 1e-3
+DELTA_TOL = 0.002  # Jacobian search: an update below this (face widths, radians, log-scale; x5 in prior spreads) stops
+N_STEPS = 4  # Jacobian search: step sizes tried per iteration, 1, 1/2, 1/4, 1/8
+STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
+
+
+class Searcher:
+    """A model's arrays in the layout the kernels take, and scratch buffers allocated once (so one Searcher
+    serves one thread at a time). Holds no state between calls."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        sm = model.shape
+        self.width = sm.frontal_width()
+        self.shape3d = np.ascontiguousarray(sm.mean)
+        basis, free, lo, hi = sm.person_view()
+        self.basis, self.lo, self.hi = basis, lo, hi
+        self.n_params = len(lo)
+        self.mode = model.features.mode
+        self._scratch = {}
+        for t in model.textures:
+            D = len(t.mean)
+            if D not in self._scratch:
+                self._scratch[D] = (np.empty((sm.n_vertices, 2)), np.empty(D, np.float32),
+                                    np.empty(max(t.appearance.shape[1], 1)), np.empty(D), np.empty(self.n_params))
+        self._delta_tol = [self._tolerances(c.free) for c in model.couples]
+
+    def _tolerances(self, free: np.ndarray, tol: float = DELTA_TOL) -> np.ndarray:
+        """(n_free,) Jacobian-search update sizes that count as converged: tol radians / log-scale, tol face
+        widths of translation (model units), 5 tol prior spreads of a coefficient or shape unit."""
+        sm = self.model.shape
+        out = np.empty(len(free))
+        for a, j in enumerate(free):
+            if j <= 3:
+                out[a] = tol
+            elif j < N_POSE:
+                out[a] = tol * self.width
+            elif j < sm.n_q:
+                out[a] = 5 * tol * (1.0 if sm.kind == "2d" else 0.5 * (sm.coef_hi[j - 6] - sm.coef_lo[j - 6]))
+            else:
+                out[a] = 5 * tol * sm.shape_sd[j - sm.n_q]
+        return out
+
+    def levels(self, gray: np.ndarray) -> Levels:
+        """The feature images of a grey frame (H, W) float32 for the couples, built on demand."""
+        return Levels(gray, self.model.features)
+
+    def factors(self, p: np.ndarray) -> list[float]:
+        """Each couple's resampling factor for the face size of p (``imaging.level_factor``)."""
+        return [level_factor(p[3] * self.width, c.face_px) for c in self.model.couples]
+
+    def bounds(self, shape_params: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of p, with the shape units pinned to ``shape_params`` when given."""
+        if shape_params is None or self.model.shape.n_shape == 0:
+            return self.lo, self.hi
+        lo, hi = self.lo.copy(), self.hi.copy()
+        n_q = self.model.shape.n_q
+        lo[n_q:] = hi[n_q:] = np.clip(shape_params, self.lo[n_q:], self.hi[n_q:])
+        return lo, hi
+
+    def _couple_run(self, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi) -> int:
+        """One couple on p (in place, shifted for the resampling's half pixel inside). Returns iterations."""
+        c = self.model.couples[k]
+        t = self.model.textures[c.texture]
+        d = level_offset(r)
+        lo_d, hi_d = lo.copy(), hi.copy()
+        p[4:6] += d
+        lo_d[4:6] += d
+        hi_d[4:6] += d
+        if c.n_stages:
+            verts, tex, coef, e, delta = self._scratch[len(t.mean)]
+            _cascade(img, r, self.shape3d, self.basis, p, c.free, lo_d, hi_d, c.cascade, c.cascade_bias, t.mean,
+                     t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:t.appearance.shape[1]],
+                     e, delta[:len(c.free)])
+            n_it = c.n_stages
+        else:
+            n_it, _ = _search(img, r, self.shape3d, self.basis, p, c.free, lo_d, hi_d, c.update_matrix, c.prior_step,
+                              c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, MAX_ITER,
+                              TOL, N_STEPS, self._delta_tol[k])
+        p[4:6] -= d
+        return int(n_it)
+
+    def fit(self, levels: Levels, p0: np.ndarray, shape_params: np.ndarray | None = None, *,
+            factors: list[float] | None = None, first: int = 0) -> FitResult:
+        """Search from p0 (n_params,) on a frame's ``levels``, couples ``first``..last, each at the resampling
+        ``factors[k]`` (default: from p0's face size), with the shape units pinned to ``shape_params`` if given."""
+        p = np.array(p0, dtype=np.float64)
+        if len(p) != self.n_params:
+            raise ValueError(f"search vector of {len(p)} values, the model has {self.n_params}")
+        factors = self.factors(p) if factors is None else factors
+        lo, hi = self.bounds(shape_params)
+        np.clip(p, lo, hi, out=p)
+        iters = tuple(self._couple_run(k, levels.get(factors[k]), factors[k], p, lo, hi)
+                      for k in range(first, len(self.model.couples)))
+        stats = self.statistics(levels, p, factors[-1])
+        verts = self.project(p)
+        return FitResult(p=p, landmarks=self.model.shape.landmark_map @ verts, vertices=verts, residual=stats[0],
+                         iterations=iters, stats=stats, confidence=self.model.validator(stats))
+
+    def project(self, p: np.ndarray) -> np.ndarray:
+        """(n_vertices, 2) image pixels of the search vector p."""
+        out = np.empty((self.model.shape.n_vertices, 2))
+        _project(self.shape3d, self.basis, np.ascontiguousarray(p, dtype=np.float64), out)
+        return out
+
+    def statistics(self, levels: Levels, p: np.ndarray, r: float | None = None) -> tuple:
+        """The fit statistics the validator reads (``STAT_NAMES``), on the finest couple at p: RMS projected
+        residual, correlation of the texture with the mean texture, mean texture magnitude, and the size of the
+        pose update the couple would still make (log10 of 0.001 + face widths + radians + log-scale: a fit the
+        cascade would move no further has about -3)."""
+        k = len(self.model.couples) - 1
+        c = self.model.couples[k]
+        t = self.model.textures[c.texture]
+        r = level_factor(p[3] * self.width, c.face_px) if r is None else r
+        verts, tex, coef, e, delta = self._scratch[len(t.mean)]
+        q = np.array(p, np.float64)
+        q[4:6] += level_offset(r)
+        m = t.appearance.shape[1]
+        err = _residual(levels.get(r), r, self.shape3d, self.basis, q, t.mean, t.appearance, t.frame.pix_vid,
+                        t.frame.pix_bary, self.mode, verts, tex, coef[:m], e)
+        tn = float(np.linalg.norm(tex))
+        corr = float(np.dot(tex, t.mean) / (tn * float(np.linalg.norm(t.mean)))) if tn > 1e-9 else 0.0
+        energy = tn / math.sqrt(len(tex))
+        upd = (c.cascade[-1] @ e + c.cascade_bias[-1]) if c.n_stages else c.update_matrix @ e
+        pose_update = 0.0
+        for a, j in enumerate(c.free):
+            if j < 3:
+                pose_update += abs(upd[a])
+            elif j == 3:
+                pose_update += abs(upd[a])
+            elif j < N_POSE:
+                pose_update += abs(upd[a]) / self.width
+        return (float(math.sqrt(err)), corr, energy, math.log10(pose_update + 1e-3))

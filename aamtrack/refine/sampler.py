@@ -4,22 +4,27 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 
 1. computes ``D^t(F^0)`` for every frame from the current key points;
 2. samples candidate key points at random from F^0;
-3. keeps those whose motion in ``D^t(F^0)`` correlates with the motion of their neighbourhood above the mean;
-4. refines the key points' positions in every frame by non-rigid GMM registration (:mod:`.gmm`) of their
-   neighbourhoods in ``D^t(F^0)`` to the scan F^t (the landmarks stay where the detector put them);
+3. keeps those whose motion correlates with the motion of their neighbourhood above the mean; the motion is
+   ``D^t(F^0)`` moved along the scans' normals onto the scans (:func:`_observed_motion`), so that motion the
+   current key points do not see yet (a cheek puff between landmarks) draws candidates;
+4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
+   F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
+   scan's normal onto the scan (:func:`_project`);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
-Step 4 in detail (our choices; the paper names only the registration method): the moving set is all of the
-thinned F^0 (``whole``; else the key points' neighbourhoods), registered coarse to fine, first as a smooth field of
-a few nodes (``nodes``, so that whole regions with their curvature features are matched rather than patches that
-can slide), then key point by key point. A surface cannot say where skin slides along it, so the registration is
-pulled (``gmm.anchor``) to a prior: near the landmarks (within about ``prior_radius`` spacings) the prediction
-``D^t`` from the previous round, which interpolates the landmarks there; far from them (the skull, the neck) only
-the head's rigid motion, estimated per frame by rigid registration of F^0 to the scan, because ``D^t`` merely
-extrapolates there. On the ICT sequences this prior carries most of the gain (see benchmarks/refine.py).
+Step 4 in detail (our choices; the paper names only the registration method). A surface says where the skin is
+along its normal, not where it slid along itself. So the registration's steps are point-to-plane (``gmm.pull``:
+each moving point moves along its normal only), coarse to fine, first as a smooth field of a few nodes
+(``nodes``), then key point by key point, and the key points are pulled (``gmm.anchor``) to a prior that places
+them along the surface: a thin-plate RBF through the landmarks and through anchors far from them (beyond
+``rigid_beyond`` spacings: the skull, the neck) that follow the head's rigid motion, estimated per frame by robust
+point-to-plane ICP of F^0 to the scan (:func:`_rigid_motion`). The prior comes from the landmarks
+and the rigid motion only, never from a previous round's registration, so that sliding cannot add up over rounds.
+Measured on ICT sequences in benchmarks/refine.py (with and without the registration: ``registration=False``).
 
-Only the landmarks are assumed to correspond between frames: the scans are point clouds, and the error that
-steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the scans.
+Only the landmarks are assumed to correspond between frames: the scans are point clouds (any subset of the face,
+any order), and the error that steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the
+scans, truncated so that template parts a scan does not cover count the same wherever they are.
 """
 
 from __future__ import annotations
@@ -31,8 +36,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .gauss_grid import GaussGrid
-from .gmm import GmmConfig, register, smooth_basis, thin
+from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
 from .rbf import rbf_system
 
 log = logging.getLogger(__name__)
@@ -50,7 +54,12 @@ class SamplerConfig:
     kernel, smoothing : of the RBF deformation; gmm : registration options (one scale per entry of ``nodes``);
     nodes : per scale, the number of nodes of the smooth field the free key points move by (0: each moves on its
     own), None: always on their own; whole : register all of F^0 (else only the key points' neighbourhoods);
-    prior_radius : reach of the prediction in the prior, in units of the (thinned) spacing; seed : of the sampling.
+    rigid_beyond, n_rigid_anchors : the prior is a thin-plate RBF through the landmarks and through this many
+    points of F^0 (farthest point sampling) farther than ``rigid_beyond`` (thinned) spacings from every landmark,
+    which follow the head's rigid motion; registration : False
+    leaves the key points at their prior (an ablation: what the GMM registration adds); project : after the
+    registration, move each free key point along the scan's normal onto the scan (:func:`_project`);
+    seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -63,7 +72,10 @@ class SamplerConfig:
     gmm: GmmConfig = field(default_factory=lambda: GmmConfig(scales=(4.0, 2.0, 1.0), anchor=2.0))
     nodes: tuple | None = (12, 48, 0)
     whole: bool = True
-    prior_radius: float = 4.0
+    rigid_beyond: float = 8.0
+    n_rigid_anchors: int = 150
+    registration: bool = True
+    project: bool = True
     seed: int = 0
 
 
@@ -103,7 +115,7 @@ def motion_correlation(motion: np.ndarray, candidates: np.ndarray, neighbours: S
     scale = max(float(norm.max()), 1e-300)
     z = np.where(norm[:, None] > 1e-9 * scale, traj / np.maximum(norm, 1e-300)[:, None], 0.0)
     out = np.zeros(len(candidates))
-    for i, (c, nb) in enumerate(zip(candidates, neighbours)):
+    for i, (c, nb) in enumerate(zip(candidates, neighbours, strict=True)):
         nb = np.asarray(nb, dtype=np.int64)
         nb = nb[nb != c]
         if len(nb):
@@ -144,39 +156,105 @@ class _Surface:
         _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
         self.normals = vecs[:, :, 0]
 
-    def distance(self, query: np.ndarray) -> np.ndarray:
-        _, j = self.tree.query(query)
-        return np.abs(((query - self.points[j]) * self.normals[j]).sum(1))
+    def distance(self, query: np.ndarray, cap: float = np.inf) -> np.ndarray:
+        """Point-to-plane distance to the nearest scan point, truncated at ``cap`` (also where no scan point is
+        within ``cap``: parts of the template the scan does not cover count the same whatever their place)."""
+        dist, j = self.tree.query(query, distance_upper_bound=cap)
+        out = np.full(len(query), cap)
+        ok = np.isfinite(dist)
+        out[ok] = np.abs(((query[ok] - self.points[j[ok]]) * self.normals[j[ok]]).sum(1))
+        return np.minimum(out, cap)
 
 
-def _surface_error(pred: np.ndarray, surfaces: Sequence) -> float:
-    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame)."""
+def _observed_motion(pred: np.ndarray, neutral: np.ndarray, surfaces: Sequence, cap: float) -> np.ndarray:
+    """(n_frames, n_vertices, 3) motion of F^0 as the scans show it: ``D^t(F^0)`` moved along the scan's normal onto
+    the nearest scan point's tangent plane (where a scan point is within ``cap``), minus F^0. Candidates are selected
+    on it, so that motion the key points cannot see yet (a cheek puff between landmarks) draws key points to it."""
+    out = pred.copy()
+    for t in range(1, len(pred)):
+        dist, j = surfaces[t].tree.query(pred[t], distance_upper_bound=cap)
+        ok = np.isfinite(dist)
+        n = surfaces[t].normals[j[ok]]
+        out[t, ok] -= n * ((pred[t, ok] - surfaces[t].points[j[ok]]) * n).sum(1)[:, None]
+    return out - neutral
+
+
+def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf) -> float:
+    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame), each
+    truncated at ``cap``."""
     if len(pred) < 2:
         return 0.0
-    return float(np.mean([surfaces[t].distance(pred[t]).mean() for t in range(1, len(pred))]))
+    return float(np.mean([surfaces[t].distance(pred[t], cap).mean() for t in range(1, len(pred))]))
 
 
-def _register_frames(neutral, index, positions, n_fixed, scenes, moving, spacing, config, progress, rng):
-    """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3)."""
+def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigids, moving, spacing, cap, config,
+                     progress, rng):
+    """Refine the free key points in every frame t >= 1; returns new positions (n_frames, k, 3).
+    rigids : per frame, the head's rigid motion (a function of points, see :func:`_rigid_motion`)."""
     system = rbf_system(neutral[index], kernel=config.kernel, smoothing=config.smoothing)
     operator = system.operator(neutral[moving])
     free = np.arange(len(index)) >= n_fixed
     bases = None
     if config.nodes is not None:
         bases = [smooth_basis(neutral[index], free, k or len(index), rng) for k in config.nodes]
-    # the prior of every free key point: the prediction near the landmarks (where D^t interpolates them), no
-    # motion other than the head's rigid motion far from them (where D^t only extrapolates)
+    # the prior of every free key point: a thin-plate RBF through the landmarks (where the detector put them) and
+    # through anchors far from them that follow the head's rigid motion only (the skull, the neck, where the
+    # landmarks' own RBF merely extrapolates). It comes from the landmarks and the rigid motion only, never from a
+    # previous round's registration, so that sliding along the surface cannot add up over rounds.
     rest = neutral[index]
-    near = np.exp(-((cKDTree(rest[:n_fixed]).query(rest)[0] / (config.prior_radius * spacing)) ** 2))[:, None]
+    far_pool = moving[cKDTree(rest[:n_fixed]).query(neutral[moving])[0] > config.rigid_beyond * spacing]
+    anchors = far_pool[_farthest_points(neutral[far_pool], min(config.n_rigid_anchors, len(far_pool)), rng)] \
+        if len(far_pool) else np.zeros(0, np.int64)
+    prior_op = rbf_system(neutral[np.r_[index[:n_fixed], anchors]], kernel=config.kernel).operator(rest)
     out = positions.copy()
+    cache = {}  # the registration's normal equations: the same for every frame
     for t in range(1, len(positions)):
-        rigid = _rigid_motion(neutral[moving], scenes[t], positions[t, :n_fixed], rest[:n_fixed], spacing, config)
-        prior = rigid(rest) + near * (positions[t] - rigid(rest))
+        prior = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
+        if not config.registration:  # ablation: the key points stay at their prior
+            out[t, n_fixed:] = prior[n_fixed:]
+            if progress is not None:
+                progress(1)
+            continue
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
-                          bases=bases, anchor_to=prior).controls
+                          bases=bases, anchor_to=prior, cache=cache).controls
+        if config.project:
+            out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
         if progress is not None:
             progress(1)
     return out
+
+
+def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,
+             border: float = 0.5) -> np.ndarray:
+    """Move points along the scan's normal onto it: to the Gaussian-weighted mean of the tangent planes of their
+    ``k`` nearest scan points (weights ``exp(-d^2 / s^2)``, s the distance to the nearest of them). Points stay
+    where no scan point is within ``cap`` and at the scan's border (their neighbours' centroid lies off to one
+    side along the surface by more than ``border`` times their mean distance: the tangent planes of a border
+    are poor). Along the surface nothing moves. (Each tangent plane leaves about ``curvature * d^2 / 2`` of the
+    surface's bend: approximate, a small part of a millimetre on a face scan.)"""
+    x = np.array(points, np.float64)
+    for _ in range(n_iter):
+        dist, j = surface.tree.query(x, k=k, distance_upper_bound=cap)
+        ok = np.isfinite(dist[:, 0])
+        if not ok.any():
+            break
+        d, jj = dist[ok], j[ok]
+        valid = np.isfinite(d)
+        jj = np.where(valid, jj, jj[:, :1])
+        n = surface.normals[jj]
+        n = n * np.sign((n * n[:, :1]).sum(2))[:, :, None]  # one orientation per point
+        w = np.where(valid, np.exp(-((d / np.maximum(d[:, :1], 1e-12 * cap)) ** 2)), 0.0)
+        normal = (n * w[:, :, None]).sum(1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+        rel = surface.points[jj] - x[ok][:, None]
+        centroid = (rel * valid[:, :, None]).sum(1) / valid.sum(1)[:, None]
+        along = centroid - normal * (centroid * normal).sum(1)[:, None]
+        spread = (np.linalg.norm(rel, axis=2) * valid).sum(1) / valid.sum(1)
+        inside = np.linalg.norm(along, axis=1) <= border * spread
+        offset = -(rel * n).sum(2)
+        move = normal * ((w * offset).sum(1) / w.sum(1))[:, None]
+        x[np.flatnonzero(ok)[inside]] -= move[inside]
+    return x
 
 
 def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,22 +267,46 @@ def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np
     return rot, mu_d - mu_s @ rot.T
 
 
-def _rigid_motion(points, scene, landmarks, landmarks0, spacing, config, n_iter: int = 5):
-    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3). Starts from the landmarks' best rigid
-    fit, then EM-like steps of the L2 cost at ``2 * spacing`` (the same steps as :func:`.gmm.register`) move all of
-    the (thinned) F^0 as one rigid body; the face's own motion is a small part of the head."""
+def _rotation(omega: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector omega (3,) (Rodrigues)."""
+    angle = float(np.linalg.norm(omega))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = omega / angle
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * kx @ kx
+
+
+def _rigid_motion(points, surface, landmarks, landmarks0, spacing, n_iter: int = 30):
+    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3).
+
+    Starts from the landmarks' best rigid fit (biased by expressions: the landmarks move with the jaw and lips),
+    then robust point-to-plane ICP of the (thinned) F^0 to the scan (:class:`_Surface`): points without scan within
+    ``4 * spacing`` are left out, and residuals are weighted by Geman-McClure with a scale of 1.5 median absolute
+    residuals, so that the parts of the face that move on their own (jaw, cheeks, lips) give way to the rigid
+    rest (forehead, nose, temples)."""
     rot, shift = _rigid_fit(landmarks0, landmarks, np.ones(len(landmarks0)))
-    h = 2.0 * spacing
-    grid, self_grid = GaussGrid(scene, h, tol=config.gmm.tol), GaussGrid(points, h, tol=config.gmm.tol)
-    w_x, mean_x = np.empty(len(points)), np.empty((len(points), 3))
-    self_grid.moments(points, w_x, mean_x)
-    w_self = np.maximum(w_x - 1.0, 0.0)
-    bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - points) / np.maximum(w_self, 1e-9)[:, None], 0.0)
-    w_z, mean_z = np.empty(len(points)), np.empty((len(points), 3))
+    points = np.asarray(points, np.float64)
+    centre = points.mean(0)
     for _ in range(n_iter):
-        x = np.ascontiguousarray(points @ rot.T + shift)
-        grid.moments(x, w_z, mean_z)
-        rot, shift = _rigid_fit(points, mean_z - bias @ rot.T, w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12)))
+        x = points @ rot.T + shift
+        dist, j = surface.tree.query(x, distance_upper_bound=4.0 * spacing)
+        ok = np.isfinite(dist)
+        if ok.sum() < 6:
+            break
+        xo, no = x[ok], surface.normals[j[ok]]
+        r = ((xo - surface.points[j[ok]]) * no).sum(1)
+        scale = max(1.5 * float(np.median(np.abs(r))), 1e-3 * spacing)
+        w = 1.0 / (1.0 + (r / scale) ** 2) ** 2
+        c = centre @ rot.T + shift
+        jac = np.hstack([np.cross(xo - c, no), no])
+        a = jac.T @ (jac * w[:, None]) + 1e-9 * np.eye(6)
+        delta = np.linalg.solve(a, -jac.T @ (w * r))
+        step = _rotation(delta[:3])
+        rot = step @ rot
+        shift = (shift - c) @ step.T + c + delta[3:]
+        if np.linalg.norm(delta[:3]) * 10.0 * spacing + np.linalg.norm(delta[3:]) < 1e-4 * spacing:
+            break
     return lambda p: p @ rot.T + shift
 
 
@@ -244,9 +346,11 @@ def refine_key_points(
     spacing = mesh_spacing(neutral[moving_pool]) if len(moving_pool) > 1 else cell
     scenes = [np.asarray(s, np.float64)[thin(s, cell, rng)] for s in scans]
     radius = config.neighbour_radius * base_spacing
+    rigids = None
+    cap = 4.0 * base_spacing  # truncation of the scan distance (template parts the scans do not cover)
 
     pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
-    error = _surface_error(pred, surfaces)
+    error = _surface_error(pred, surfaces, cap)
     errors, n_keys = [error], [len(index)]
     log.info("sampler: %d key points, error %.4g", len(index), error)
     for round_ in range(config.max_rounds):
@@ -254,7 +358,7 @@ def refine_key_points(
         if len(pool) == 0:
             break
         cand = rng.choice(pool, min(config.n_candidates, len(pool)), replace=False)
-        kept = select_candidates(pred - neutral if motion is None else motion, cand,
+        kept = select_candidates(_observed_motion(pred, neutral, surfaces, cap) if motion is None else motion, cand,
                                  tree0.query_ball_point(neutral[cand], radius))
         new_index = np.concatenate([index, kept])
         new_positions = np.concatenate([positions, pred[:, kept]], axis=1)
@@ -262,10 +366,13 @@ def refine_key_points(
         near = cKDTree(neutral[new_index]).query(neutral[moving_pool], distance_upper_bound=2 * radius)[0]
         moving = moving_pool if config.whole else moving_pool[np.isfinite(near)]
         if n_frames > 1 and len(moving):
-            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, moving, spacing,
-                                             config, progress, rng)
+            if rigids is None:  # the head's motion per frame does not depend on the key points: once
+                rigids = [None] + [_rigid_motion(neutral[moving_pool], surfaces[t], landmarks[t], neutral[index[:n_fixed]],
+                                                 spacing) for t in range(1, n_frames)]
+            new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, surfaces, rigids,
+                                             moving, spacing, cap, config, progress, rng)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
-        new_error = _surface_error(new_pred, surfaces)
+        new_error = _surface_error(new_pred, surfaces, cap)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,
                  len(new_index), len(kept), len(cand), new_error)
         if new_error >= error:

@@ -82,7 +82,7 @@ def _bumps(t: np.ndarray, rng: np.random.Generator, *, rate: float, width: float
     """Sum of smooth bumps (raised cosines) at random times: ``rate`` per frame, ``width`` frames wide."""
     out = np.zeros(len(t))
     n = rng.poisson(rate * len(t)) + 1
-    for centre, amp in zip(rng.uniform(0, len(t), n), rng.uniform(*height, n)):
+    for centre, amp in zip(rng.uniform(0, len(t), n), rng.uniform(*height, n), strict=True):
         u = np.clip((t - centre) / width, -1.0, 1.0)
         out += amp * 0.5 * (1.0 + np.cos(np.pi * u))
     return out
@@ -150,3 +150,69 @@ def apply_weights(model: FaceModel, identity: np.ndarray, weights: np.ndarray) -
     """(n_frames, n_vertices, 3) float32 faces of ``identity`` with the given expression weights (ground truth)."""
     frames = neutral_face(model, identity)[None] + np.tensordot(weights, model.expression_deltas, axes=1)
     return frames.astype(np.float32)
+
+
+def blind_spot_weights(names: tuple, n_frames: int, rng: np.random.Generator) -> np.ndarray:
+    """(n_frames, n_expr) smooth weights of motions the 68 landmarks see badly: cheek puffs, nose sneers, a pucker
+    and a jaw opening, each as a few smooth bumps of moderate strength; row 0 zero."""
+    t = np.arange(n_frames, dtype=np.float64)
+    index = {name: i for i, name in enumerate(names)}
+    w = np.zeros((n_frames, len(names)))
+
+    def add(name: str, curve: np.ndarray) -> None:
+        if name in index:
+            w[:, index[name]] += curve
+
+    rate = 3.0 / max(n_frames, 1)  # about three of each per sequence, whatever its length
+    puff = _bumps(t, rng, rate=rate, width=15, height=(0.3, 0.7))
+    add("cheekPuff_L", puff)
+    add("cheekPuff_R", rng.uniform(0.7, 1.0) * puff)
+    sneer = _bumps(t, rng, rate=rate, width=12, height=(0.3, 0.7))
+    add("noseSneer_L", sneer)
+    add("noseSneer_R", rng.uniform(0.7, 1.0) * sneer)
+    add("mouthPucker", _bumps(t, rng, rate=rate, width=12, height=(0.3, 0.7)))
+    add("jawOpen", _bumps(t, rng, rate=rate, width=12, height=(0.05, 0.2)))
+    w *= np.clip(t / 8.0, 0.0, 1.0)[:, None]
+    return np.clip(w, 0.0, 1.0)
+
+
+def head_turn(n_frames: int, *, yaw_deg: float = 15.0, pitch_deg: float = 5.0) -> np.ndarray:
+    """(n_frames, 3, 3) rotations of a slow head turn: yaw swings to +-``yaw_deg`` and back over the sequence, with
+    a smaller nod (``pitch_deg``); frame 0 is the identity."""
+    u = np.arange(n_frames) / max(n_frames - 1, 1)
+    yaw = np.radians(yaw_deg) * np.sin(2 * np.pi * u)
+    pitch = np.radians(pitch_deg) * np.sin(np.pi * u) ** 2
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    one, zero = np.ones(n_frames), np.zeros(n_frames)
+    r_yaw = np.stack([np.stack([cy, zero, sy], 1), np.stack([zero, one, zero], 1), np.stack([-sy, zero, cy], 1)], 1)
+    r_pitch = np.stack([np.stack([one, zero, zero], 1), np.stack([zero, cp, -sp], 1), np.stack([zero, sp, cp], 1)], 1)
+    return r_yaw @ r_pitch
+
+
+def make_blind_sequence(
+    model: FaceModel, *, n_frames: int = 60, identity: np.ndarray | None = None, seed: int = 0,
+    yaw_deg: float = 15.0, pitch_deg: float = 5.0,
+) -> FaceSequence:
+    """A sequence of :func:`blind_spot_weights` under a slow :func:`head_turn` (about the centroid of the neutral
+    face's vertices, i.e. inside the head); frame 0 neutral and unrotated."""
+    if n_frames < 1:
+        raise ValueError(f"n_frames must be >= 1, got {n_frames}")
+    rng = np.random.default_rng(seed)
+    if identity is None:
+        identity = random_identity(model, rng)
+    weights = blind_spot_weights(model.expression_names, n_frames, rng)
+    frames = apply_weights(model, identity, weights).astype(np.float64)
+    centre = frames[0].mean(0)
+    frames = (frames - centre) @ head_turn(n_frames, yaw_deg=yaw_deg, pitch_deg=pitch_deg).transpose(0, 2, 1) + centre
+    return FaceSequence(frames.astype(np.float32), weights, np.asarray(identity, np.float64), model.landmark68)
+
+
+def partial_scans(frames: np.ndarray, vertices: np.ndarray, rng: np.random.Generator, *, fraction: float = 0.6,
+                  noise: float = 0.0) -> list:
+    """Point clouds as a scanner gives them: per frame a random ``fraction`` of ``vertices`` (indices into the
+    frames' vertices, e.g. the face), shuffled, with isotropic Gaussian noise of standard deviation ``noise``."""
+    out = []
+    for f in frames:
+        pick = rng.choice(vertices, int(round(fraction * len(vertices))), replace=False)
+        out.append(f[pick].astype(np.float64) + noise * rng.standard_normal((len(pick), 3)))
+    return out

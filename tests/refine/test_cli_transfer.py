@@ -84,8 +84,27 @@ def _bad_inputs(tmp):
     (tmp / "junk.npz").write_bytes(b"not a zip")
     _csv(tmp / "fail.csv", [[0, 0] + [0] * 204])
     (tmp / "cols.csv").write_text("frame,success,X_0\n0,1,0\n")
+    verts = 2.0 * bumpy_surface(20)
+    np.savez(tmp / "faces_oob.npz", vertices=verts, faces=np.array([[0, 1, 400]]), landmark68=LANDMARKS)
+    np.savez(tmp / "faces_2.npz", vertices=verts, faces=np.array([[0, 1, -1]]), landmark68=LANDMARKS)
+    np.savez(tmp / "flat.npz", vertices=verts * [1, 1, 0], landmark68=LANDMARKS)  # degenerate: a plane
+    np.savez(tmp / "dup.npz", vertices=verts, landmark68=np.r_[LANDMARKS[:67], LANDMARKS[3]])
+    np.savez(tmp / "huge.npz", vertices=verts * 1e300, landmark68=LANDMARKS)
+    np.savez(tmp / "tiny.npz", vertices=verts * 1e-300, landmark68=LANDMARKS)
+    np.savez(tmp / "ict_nolm.npz", neutral=verts, quads=np.zeros((0, 4), np.int64))
+    (tmp / "trunc.npz").write_bytes((tmp / "src.npz").read_bytes()[:2000])
+    (tmp / "f0.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
     src, tgt = tmp / "src.npz", tmp / "tgt.obj"
     return {
+        "target face out of range": [src, tmp / "faces_oob.npz"],
+        "target face of 2 corners": [src, tmp / "faces_2.npz"],
+        "degenerate target": [src, tmp / "flat.npz"],
+        "duplicate landmarks": [src, tmp / "dup.npz"],
+        "huge coordinates": [src, tmp / "huge.npz"],
+        "tiny coordinates": [src, tmp / "tiny.npz"],
+        "ICT layout without landmarks": [src, tmp / "ict_nolm.npz"],
+        "truncated npz": [tmp / "trunc.npz", tgt],
+        "obj face index 0": [src, tmp / "f0.obj"],
         "missing source": [tmp / "absent.npz", tgt],
         "unreadable npz": [tmp / "junk.npz", tgt],
         "no landmarks": [tmp / "nolm.npz", tgt],
@@ -103,6 +122,8 @@ def _bad_inputs(tmp):
 
 
 BAD_CASES = [
+    "target face out of range", "target face of 2 corners", "degenerate target", "duplicate landmarks",
+    "huge coordinates", "tiny coordinates", "ICT layout without landmarks", "truncated npz", "obj face index 0",
     "missing source", "unreadable npz", "no landmarks", "wrong landmark count", "landmark out of range",
     "empty sequence", "no successful row", "missing columns", "malformed obj", "obj without vertices",
     "target vertices not 3D", "missing target", "obj without landmarks",
@@ -113,16 +134,43 @@ BAD_CASES = [
 def test_bad_input(tmp_path, capsys, case):
     argv = _bad_inputs(tmp_path)[case]
     out = tmp_path / "out.npz"
-    code, err = _run(capsys, *argv[:2], "--out", out, *argv[2:])
-    assert code != 0
+    code, err = _run(capsys, *argv[:2], "--out", out, "--obj-dir", tmp_path / "objs", *argv[2:])
+    assert code == 1
     assert len(err) == 1 and err[0].startswith("aamtrack transfer: error: "), err
     assert not out.exists() and not list(tmp_path.glob(".out.npz*"))  # nothing written
+    assert not (tmp_path / "objs").exists()
+
+
+def test_ict_layout_target_compressed_output(tmp_path, capsys):
+    import zipfile
+
+    _source_npz(tmp_path / "src.npz", n_frames=3)
+    verts = 2.0 * bumpy_surface(20)
+    quads = np.array([[i * 20 + j, i * 20 + j + 1, (i + 1) * 20 + j + 1, (i + 1) * 20 + j]
+                      for i in range(19) for j in range(19)])
+    np.savez(tmp_path / "ict.npz", neutral=verts.astype(np.float32), quads=quads, landmark68_vertex_idx=LANDMARKS,
+             expression_names=np.array(["jawOpen"]))  # the shared ICT FaceKit file's keys
+    out = tmp_path / "anim.npz"
+    code, err = _run(capsys, tmp_path / "src.npz", tmp_path / "ict.npz", "--out", out)
+    assert code == 0 and not any("registering" in e for e in err)
+    with zipfile.ZipFile(out) as z:
+        assert all(i.compress_type == zipfile.ZIP_DEFLATED for i in z.infolist())  # np.savez_compressed
+    with np.load(out) as data:
+        assert data["frames"].shape == (3, 400, 3) and np.array_equal(data["faces"], quads)
+        assert np.array_equal(data["landmark68"], LANDMARKS)
+
+
+def test_missing_mesh_keys_are_named(tmp_path, capsys):
+    _source_npz(tmp_path / "src.npz")
+    np.savez(tmp_path / "other.npz", verts=np.zeros((5, 3)))
+    code, err = _run(capsys, tmp_path / "src.npz", tmp_path / "other.npz", "--out", tmp_path / "o.npz")
+    assert code == 1 and "`vertices`" in err[0] and "`neutral`" in err[0] and "verts" in err[0]
 
 
 def test_obj_roundtrip(tmp_path):
-    verts = bumpy_surface(5)
-    faces = np.array([[0, 1, 6, -1], [1, 2, 7, 6]])
-    write_obj(tmp_path / "m.obj", verts, faces, np.arange(68) % 25)
+    verts = bumpy_surface(9)
+    faces = np.array([[0, 1, 10, -1], [1, 2, 11, 10]])
+    write_obj(tmp_path / "m.obj", verts, faces, np.arange(68)[::-1])
     mesh = read_obj(tmp_path / "m.obj")
     assert np.abs(mesh.vertices - verts).max() < 1e-5  # 6 significant digits
-    assert np.array_equal(mesh.faces, faces) and np.array_equal(mesh.landmark68, np.arange(68) % 25)
+    assert np.array_equal(mesh.faces, faces) and np.array_equal(mesh.landmark68, np.arange(68)[::-1])

@@ -62,7 +62,7 @@ def test_anchor_to_prior_decides_sliding():
     controls = plane[rng.choice(len(plane), 12, replace=False)]
     operator = rbf_system(controls).operator(plane)
     scene = plane + [0.0, 0.0, 0.05]
-    config = GmmConfig(anchor=0.05, max_iter=20)
+    config = GmmConfig(anchor=0.05, max_iter=20, pull="isotropic")  # the anchor's role; see the next test
     plain = register(operator, controls, scene, spacing=mesh_spacing(plane), config=config)
     slid = register(operator, controls, scene, spacing=mesh_spacing(plane), config=config,
                     anchor_to=controls + [0.05, 0.0, 0.0])
@@ -71,3 +71,18 @@ def test_anchor_to_prior_decides_sliding():
     shift_plain = np.mean(plain.controls[:, 0] - controls[:, 0])
     shift_slid = np.mean(slid.controls[:, 0] - controls[:, 0])
     assert abs(shift_plain) < 0.005 and shift_slid > 0.02, (shift_plain, shift_slid)  # in-plane: the prior
+
+
+def test_normal_pull_moves_along_the_normal_only():
+    # the same flat patch moved along its normal and a little along itself: the point-to-plane pull takes the
+    # normal offset from the surface and leaves the in-plane place to the prior (here: where the controls start)
+    rng = np.random.default_rng(SEED + 4)
+    u = np.linspace(-1, 1, 20)
+    x, y = (a.ravel() for a in np.meshgrid(u, u))
+    plane = np.stack([x, y, 0.01 * x * y], 1)
+    controls = plane[rng.choice(len(plane), 12, replace=False)]
+    operator = rbf_system(controls).operator(plane)
+    scene = plane + [0.03, 0.0, 0.05]
+    res = register(operator, controls, scene, spacing=mesh_spacing(plane), config=GmmConfig(anchor=0.05, max_iter=20))
+    assert abs(np.mean(res.moved[:, 2] - scene[:, 2])) < 0.005  # normal offset recovered (to 10% of 0.05)
+    assert abs(np.mean(res.controls[:, 0] - controls[:, 0])) < 0.005  # no sliding toward the scene's 0.03

@@ -1,7 +1,6 @@
 """Key point sampler: correlation-based selection on a constructed example; refinement on a synthetic sequence."""
 
 import numpy as np
-import pytest
 from conftest import SEED
 from scipy.spatial import cKDTree
 from synthetic import bumpy_surface
@@ -36,9 +35,6 @@ def test_static_points_have_zero_correlation():
     assert np.array_equal(corr, np.zeros(4))  # defined, not NaN
 
 
-@pytest.mark.xfail(strict=True, reason="regression, open: since the EM-like registration with the prior "
-                   "(rigid far from landmarks) the refined key points slide on this synthetic puff (seen 1.0x with the "
-                   "default anchor, 1.4-3.5x with weaker anchors; the L-BFGS registration it replaced gave 0.80x)")
 def test_refinement_reduces_tracking_error():
     rng = np.random.default_rng(SEED)
     neutral = bumpy_surface(24)
@@ -58,12 +54,13 @@ def test_refinement_reduces_tracking_error():
     assert list(keys.errors) == sorted(keys.errors, reverse=True)  # each accepted round lowers the error
     before = np.linalg.norm(deform_frames(neutral, keys.__class__(landmarks, frames[:, landmarks], 9)) - frames, axis=2)
     after = np.linalg.norm(deform_frames(neutral, keys) - frames, axis=2)
-    assert after.mean() < 0.9 * before.mean()  # lower than with the 9 landmarks alone (seen: 0.80x)
+    assert after.mean() < 0.9 * before.mean()  # lower than with the 9 landmarks alone (seen: 0.69x)
+    puff_region = np.abs(frames[3, :, 2] - neutral[:, 2]) > 0.02
+    assert after[:, puff_region].mean() < 0.75 * before[:, puff_region].mean()  # on the puff itself (seen 0.61x)
 
 
 def test_rigid_motion_of_the_head_is_recovered():
-    from aamtrack.refine.sampler import SamplerConfig as Config
-    from aamtrack.refine.sampler import _rigid_fit, _rigid_motion, mesh_spacing
+    from aamtrack.refine.sampler import _rigid_fit, _rigid_motion, _Surface, mesh_spacing
 
     rng = np.random.default_rng(SEED + 7)
     surface = bumpy_surface(30)
@@ -73,9 +70,24 @@ def test_rigid_motion_of_the_head_is_recovered():
     scan = rng.permutation(surface @ rot.T + shift)
     landmarks = np.arange(0, 900, 37)
     noisy = surface[landmarks] @ rot.T + shift + 0.02 * rng.standard_normal((len(landmarks), 3))  # detector noise
-    motion = _rigid_motion(surface, scan, noisy, surface[landmarks], mesh_spacing(surface), Config())
+    motion = _rigid_motion(surface, _Surface(scan), noisy, surface[landmarks], mesh_spacing(surface))
     truth = surface @ rot.T + shift
     err = np.linalg.norm(motion(surface) - truth, axis=1).max()
     rot0, shift0 = _rigid_fit(surface[landmarks], noisy, np.ones(len(landmarks)))  # from the landmarks alone
     err0 = np.linalg.norm(surface @ rot0.T + shift0 - truth, axis=1).max()
-    assert err < 0.5 * err0  # the surface at least halves the error the landmarks' noise leaves (seen 0.0057)
+    assert err < 0.5 * err0  # the surface at least halves the error the landmarks' noise leaves
+
+
+def test_projection_onto_scan_along_its_normal_only():
+    from aamtrack.refine.sampler import _project, _Surface
+
+    rng = np.random.default_rng(SEED + 8)
+    u = rng.uniform(-1, 1, (3000, 2))
+    scan = np.column_stack([u, 0.1 * u[:, 0] ** 2])  # a gently curved sheet, x and y in [-1, 1]
+    inner = np.array([[0.2, -0.3, 0.05], [-0.4, 0.1, -0.04]])
+    out = _project(inner, _Surface(scan), cap=0.2)
+    on_sheet = 0.1 * out[:, 0] ** 2
+    assert np.abs(out[:, 2] - on_sheet).max() < 2e-3  # on the scan (curvature leaves < 1e-3 here)
+    assert np.abs(out[:, :2] - inner[:, :2]).max() < 2e-2  # moved along the (nearly vertical) normal only
+    beyond = np.array([[1.3, 0.0, 0.05], [5.0, 5.0, 1.0]])  # past the scan's border; far from any scan point
+    assert np.array_equal(_project(beyond, _Surface(scan), cap=0.5), beyond)  # they stay

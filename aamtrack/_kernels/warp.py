@@ -314,6 +314,7 @@ def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix
     """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
     delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
 
+    Parameters whose bounds are equal (pinned) are not updated, and their rows are not computed.
     R (n_stages, n_free, D) float32, b (n_stages, n_free) float64. Scratch: verts (n, 2) float64,
     tex (D,) float32, coef (m,) float64, e (D,) float64, delta (n_free,) float64.
     Returns |e|^2 / D of the last stage's residual (before its update).
@@ -323,6 +324,9 @@ def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix
     for s in range(R.shape[0]):
         err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
         for a in range(free.shape[0]):
+            if lo[free[a]] == hi[free[a]]:  # a pinned parameter (the tracker's held shape units): no row to apply
+                delta[a] = 0.0
+                continue
             acc = b[s, a]
             for p in range(e.shape[0]):
                 acc += R[s, a, p] * e[p]

@@ -222,3 +222,18 @@ def test_search_reaches_a_known_minimum():
     _search(image, 1.0, shape3d, basis, start, free, lo, hi, U, np.zeros((2, 2)), np.zeros(2), mean, no_app, vid,
             bary, 0, 30, 1e-6, 4, np.full(2, 1e-6))
     assert np.abs(start[4:6] - q[4:6]).max() < 0.05  # back to the true translation within 1/20 pixel
+
+
+def test_cascade_leaves_pinned_parameters():
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng)
+    D = 2 * len(vid)
+    free = np.array([4, 5, 6])
+    R = rng.normal(0, 1e-3, (2, 3, D)).astype(np.float32)
+    b = np.full((2, 3), 0.05)
+    lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
+    lo[6] = hi[6] = q[6]  # the coefficient is held
+    p = q.copy()
+    _cascade(image, 1.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32), np.zeros((D, 0), np.float32),
+             vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D), np.empty(3))
+    assert p[6] == q[6] and not np.allclose(p[4:6], q[4:6])  # held stays, the rest moved

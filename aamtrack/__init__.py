@@ -14,7 +14,7 @@ _LAZY = {
     "track_video": "aamtrack.api",
     "Tracker": "aamtrack.track.tracker",
     "TrackerConfig": "aamtrack.track.tracker",
-    "FrameResult": "aamtrack.track.result",
+    "FrameResult": "aamtrack.result",
     "SmoothConfig": "aamtrack.track.smooth",
     "smooth_results": "aamtrack.track.smooth",
     "Model": "aamtrack.model",

@@ -19,7 +19,7 @@ from .model import Model
 from .model import load_model as _load_model_file
 from .models import SHIPPED_KINDS, default_model_path
 from .track.events import annotate
-from .track.result import FrameResult
+from .result import FrameResult
 from .track.smooth import SmoothConfig, smooth_results
 from .track.tracker import Tracker, TrackerConfig
 

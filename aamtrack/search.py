@@ -17,7 +17,7 @@ from ._kernels.warp import _cascade, _project, _residual, _search
 from .imaging import Levels, level_factor, level_offset
 from .mesh.shape_model import N_POSE
 from .model import Model
-from .track.result import FitResult
+from .result import FitResult
 
 MAX_ITER = 30
 TOL = 1e-3

@@ -65,7 +65,7 @@ def _fmt(values, spec: str) -> list[str]:
 
 
 class TrackingCsvWriter(TemporaryOutput):
-    """Write :class:`~aamtrack.track.result.FrameResult` rows to a CSV file, atomically.
+    """Write :class:`~aamtrack.result.FrameResult` rows to a CSV file, atomically.
 
     Rows go to a temporary file next to ``path``; ``close()`` renames it to ``path``. Used as a context manager,
     an exception leaving the block deletes the temporary file and leaves nothing at ``path`` (an existing file
@@ -142,7 +142,7 @@ class TrackingCsvWriter(TemporaryOutput):
         return row
 
     def write(self, result, leading: Sequence[str] = ()) -> None:
-        """Append the row of one :class:`~aamtrack.track.result.FrameResult` (after the ``leading`` values)."""
+        """Append the row of one :class:`~aamtrack.result.FrameResult` (after the ``leading`` values)."""
         if self._handle is None:
             raise ValueError(f"{self.path}: writer is closed")
         if len(leading) != len(self.leading):

@@ -60,7 +60,7 @@ def mesh_edges(triangles: np.ndarray) -> np.ndarray:
 
 
 def draw_result(image: np.ndarray, result, edges: np.ndarray | None = None) -> np.ndarray:
-    """Draw one :class:`~aamtrack.track.result.FrameResult` on ``image`` in place and return it.
+    """Draw one :class:`~aamtrack.result.FrameResult` on ``image`` in place and return it.
 
     Parameters
     ----------

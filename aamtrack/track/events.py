@@ -18,7 +18,7 @@ import logging
 import re
 from typing import Iterable, Iterator
 
-from .result import FrameResult
+from ..result import FrameResult
 
 __all__ = ["annotate", "loss_reason"]
 

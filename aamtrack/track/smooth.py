@@ -42,7 +42,7 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from .result import FrameResult
+from ..result import FrameResult
 
 __all__ = ["SmoothConfig", "OneEuroFilter", "smooth_results"]
 

@@ -20,7 +20,7 @@ from ..imaging import to_gray32
 from ..mesh.shape_model import N_POSE, initial_pose
 from ..model import Model
 from ..search import Searcher
-from .result import FitResult, FrameResult
+from ..result import FitResult, FrameResult
 
 log = logging.getLogger(__name__)
 

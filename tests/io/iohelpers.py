@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 WIDTH, HEIGHT = 128, 64
 BLOCK = 16  # 8 blocks of 16x16 px along the top row encode bits 0..7 of the index

@@ -12,7 +12,7 @@ from iohelpers import make_results
 
 from aamtrack.errors import InputError
 from aamtrack.io import TrackingCsvWriter, csv_columns, read_tracking_csv
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 ANIM = ["AU_jaw_drop", "AU_lip_stretcher", "AU_brow_lowerer"]
 SHAPE = ["shape_0", "shape_1"]

@@ -8,7 +8,7 @@ from conftest import SEED
 from iohelpers import HEIGHT, WIDTH, index_image, make_results
 
 from aamtrack.io import OverlayWriter, draw_result, mesh_edges, open_frames
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 
 def test_mesh_edges():

@@ -8,7 +8,7 @@ from conftest import SEED
 
 from aamtrack.errors import InputError
 from aamtrack.io import read_pts, write_pts, write_pts_per_frame
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 
 @pytest.fixture

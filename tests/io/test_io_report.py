@@ -16,7 +16,7 @@ from conftest import SEED
 
 from aamtrack.errors import OutputError
 from aamtrack.io.report import ReportBuilder, require_matplotlib
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 ANIM = ("jaw_drop", "lip_stretcher")
 N = 60

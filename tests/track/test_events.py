@@ -5,7 +5,7 @@ import logging
 import numpy as np
 
 from aamtrack.track.events import annotate, loss_reason
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 
 
 def _r(i, status, conf=0.9, searched=True, reason=""):

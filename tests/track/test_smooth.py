@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from aamtrack.track.result import FrameResult
+from aamtrack.result import FrameResult
 from aamtrack.track.smooth import OneEuroFilter, SmoothConfig, smooth_results
 from conftest import SEED
 

@@ -114,7 +114,7 @@ def test_loss_reasons(synth_model):
     """Each loss check on its own: confidence, landmarks inside the frame, one-frame turn and rescale."""
     from dataclasses import replace
 
-    from aamtrack.track.result import FitResult
+    from aamtrack.result import FitResult
 
     tracker = Tracker(synth_model)
     cfg = tracker.config

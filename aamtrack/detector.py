@@ -19,10 +19,15 @@ CASCADE = "haarcascade_frontalface_default.xml"
 DETECT_WIDTH = 320  # frames are detected at about this width (faster; faces over ~25% of the width)
 
 
-class HaarDetector:
-    """``detect(gray)`` -> (x, y, w, h) float box of the largest face in pixels, or None."""
+ROLLED = (30.0, -30.0)  # degrees the frame is also turned by when no upright face is found
 
-    def __init__(self, *, min_face_fraction: float = 0.08, scale_factor: float = 1.1, min_neighbors: int = 4):
+
+class HaarDetector:
+    """``detect(gray)`` -> (x, y, w, h) float box of the largest face in pixels, or None; ``find(gray)`` also
+    looks for faces rolled by about 30 degrees (the frontal cascade misses them), in turned copies of the frame."""
+
+    def __init__(self, *, min_face_fraction: float = 0.08, scale_factor: float = 1.1, min_neighbors: int = 4,
+                 rolled: tuple = ROLLED):
         path = Path(cv2.data.haarcascades) / CASCADE
         self.cascade = cv2.CascadeClassifier(str(path))
         if self.cascade.empty():
@@ -30,9 +35,11 @@ class HaarDetector:
         self.min_face_fraction = min_face_fraction
         self.scale_factor = scale_factor
         self.min_neighbors = min_neighbors
+        self.rolled = tuple(rolled)
 
-    def detect_all(self, gray: np.ndarray) -> np.ndarray:
-        """(n, 4) float boxes (x, y, w, h), largest first."""
+    def detect_all(self, gray: np.ndarray, angle: float = 0.0) -> np.ndarray:
+        """(n, 4) float boxes (x, y, w, h), largest first, in the frame turned by ``angle`` degrees
+        (counterclockwise on screen) about its centre (``unturn`` maps points back)."""
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
@@ -40,6 +47,10 @@ class HaarDetector:
         f = min(1.0, DETECT_WIDTH / gray.shape[1])
         small = cv2.resize(gray, None, fx=f, fy=f, interpolation=cv2.INTER_AREA) if f < 1 else gray
         small = cv2.equalizeHist(small)
+        if angle:
+            h, w = small.shape
+            M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, 1.0)
+            small = cv2.warpAffine(small, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         m = max(20, int(self.min_face_fraction * min(small.shape)))
         boxes = self.cascade.detectMultiScale(small, scaleFactor=self.scale_factor,
                                               minNeighbors=self.min_neighbors, minSize=(m, m))
@@ -51,6 +62,25 @@ class HaarDetector:
     def detect(self, gray: np.ndarray):
         boxes = self.detect_all(gray)
         return boxes[0] if len(boxes) else None
+
+    def find(self, gray: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """(box, angle): the largest upright face, else the largest in the frame turned by each of ``rolled``
+        degrees (the box is in that turned frame: ``unturn`` maps points back); None when there is none."""
+        for angle in (0.0,) + self.rolled:
+            boxes = self.detect_all(gray, angle)
+            if len(boxes):
+                return boxes[0], angle
+        return None
+
+
+def unturn(points: np.ndarray, angle: float, shape: tuple) -> np.ndarray:
+    """(n, 2) points of a frame turned by ``angle`` degrees about its centre (``HaarDetector.detect_all``),
+    mapped back to the frame of ``shape`` (H, W[, C])."""
+    if not angle:
+        return np.asarray(points, float)
+    H, W = shape[:2]
+    inv = cv2.invertAffineTransform(cv2.getRotationMatrix2D((W / 2, H / 2), angle, 1.0))
+    return np.asarray(points, float) @ inv[:, :2].T + inv[:, 2]
 
 
 def guess_points(box, box_points: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from ..detector import HaarDetector, guess_points
+from ..detector import HaarDetector, guess_points, unturn
 from ..imaging import to_gray32
 from ..mesh.shape_model import N_POSE, initial_pose
 from ..model import Model
@@ -109,10 +109,11 @@ class Tracker:
         off = np.array([x0, y0], float)
         return replace(best, p=p, landmarks=best.landmarks + off, vertices=best.vertices + off), t_pyr
 
-    def detection_starts(self, box, shape_params=None) -> list:
+    def detection_starts(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> list:
         """The search starts after a detection: the rough pose from the box (poster: guessed feature points,
-        least squares) varied by the configured scale, vertical shift and roll."""
-        p0 = self.initial_p(box, shape_params)
+        least squares; a box found in the frame turned by ``angle`` degrees, of ``shape``, has its points turned
+        back) varied by the configured scale, vertical shift and roll."""
+        p0 = self.initial_p(box, shape_params, angle=angle, shape=shape)
         starts = []
         for scale, shift, roll in self.config.starts:
             p = p0.copy()
@@ -122,10 +123,11 @@ class Tracker:
             starts.append(p)
         return starts
 
-    def initial_p(self, box, shape_params=None) -> np.ndarray:
+    def initial_p(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> np.ndarray:
         """Search vector of the rough pose from a detection box, coefficients 0, the person's shape units (or 0)."""
         sm = self.model.shape
-        q = initial_pose(sm, guess_points(box, self.model.detector_box_points), None)
+        points = unturn(guess_points(box, self.model.detector_box_points), angle, shape)
+        q = initial_pose(sm, points, None)
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
         return np.r_[q, sigma]
 
@@ -189,13 +191,13 @@ class Tracker:
             t0 = time.perf_counter()
             image = frame.image
             if p is None:
-                box = self.detector.detect(image)
+                found = self.detector.find(image)
                 timings["detect"] = time.perf_counter() - t0
-                if box is None:
+                if found is None:
                     yield self._result(frame, "lost", None, timings, "no face detected")
                     continue
                 status = "detected"
-                starts = self.detection_starts(box, shape_params)
+                starts = self.detection_starts(found[0], shape_params, angle=found[1], shape=image.shape)
                 first = 0
             else:
                 start, status = p.copy(), "tracked"

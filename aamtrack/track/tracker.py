@@ -41,6 +41,8 @@ class TrackerConfig:
     assumed: sigma is kept through losses and re-detections.
     skip_coarse: frames tracked from the previous frame skip this many of the coarsest couples (they give
     the capture range a detection needs; frame-to-frame motion is smaller).
+    refine_detection: after a detection, search once more from the chosen fit, as a tracked frame would
+    (helen_test stills, 3D: share below NME 0.05 55.2% -> 58.2%, median 0.0462 -> 0.0449).
     starts: after a detection the search runs from each (scale factor, vertical shift as a share of the face
     width, roll in radians) applied to the rough pose from the box, and keeps the most confident fit (Haar
     boxes vary in scale and in how far down the face they sit, and say nothing of roll)."""
@@ -55,6 +57,7 @@ class TrackerConfig:
     sigma_frames: int = 50
     sigma_min_confidence: float = 0.9
     skip_coarse: int = 1
+    refine_detection: bool = True
     starts: tuple = ((1.0, 0.0, 0.0), (0.9, 0.0, 0.0), (1.1, 0.0, 0.0), (1.0, -0.06, 0.0), (1.0, 0.06, 0.0),
                      (1.0, 0.0, -0.21), (1.0, 0.0, 0.21))
 
@@ -207,6 +210,9 @@ class Tracker:
                 starts, first = [start], cfg.skip_coarse
             t1 = time.perf_counter()
             res, t_pyr = self.fit_roi(image, starts, shape_params, first=first)
+            if status == "detected" and cfg.refine_detection:
+                res, t_more = self.fit_roi(image, [res.p], shape_params, first=cfg.skip_coarse)
+                t_pyr += t_more
             timings["pyramid"] = t_pyr
             timings["search"] = time.perf_counter() - t1 - t_pyr
             reason = self.loss_reason(res, image.shape[:2], p if status == "tracked" else None)

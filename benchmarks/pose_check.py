@@ -8,12 +8,15 @@ triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears (no ha
 and texture hidden or foreshortened in the source photo is stretched: the renders are easier than real heads
 in that the background is plain, and harder in that the face's edge is a hard cut.
 
-Two measurements per pose:
+Measurements per pose (the first two are the check; the third is a diagnostic):
 - still: one ``Searcher.fit`` from the true position and scale but a frontal pose (rotation 0, animation
   units and shape units 0; the shape units are searched);
 - video: ~30 frames turning smoothly (smoothstep) from frontal to the pose, the expression ramping with it,
   tracked by ``Tracker.track`` from a Haar detection; error at the last frame (a lost last frame is counted
-  apart, not in the error statistics).
+  apart, not in the error statistics);
+- from truth: one ``Searcher.fit`` started at the true pose and expression with the shape units pinned to the
+  source fit's: the error is how far the search's fixed point lies from the truth (its bias), apart from
+  capture range.
 Errors: per axis |estimated - true| (degrees; rx = pitch, ry = yaw, rz = roll, the model's R = Rz Ry Rx) and
 the geodesic angle between R_est and R_true; median and p95 over the grid per condition.
 
@@ -266,7 +269,12 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                 p0[3:6] = q[3:6]
                 res = searcher.fit(searcher.levels(to_gray32(img)), p0)
                 row = {"face": face.name, "expression": expression, "pitch": pose[0], "yaw": pose[1],
-                       "roll": pose[2], "still": angle_errors(res.p, q), "still_confidence": res.confidence}
+                       "roll": pose[2], "still": angle_errors(res.p, q), "still_confidence": res.confidence,
+                       "still_estimate_deg": np.degrees(res.p[:3]).tolist()}
+                # diagnostic: start at the truth, the person's shape units pinned: where the search's fixed point is
+                res = searcher.fit(searcher.levels(to_gray32(img)), np.r_[q, face.sigma], face.sigma)
+                row["from_truth"] = angle_errors(res.p, q)
+                row["from_truth_estimate_deg"] = np.degrees(res.p[:3]).tolist()
                 ts = 0.5 - 0.5 * np.cos(np.pi * np.linspace(0, 1, n_frames))  # smoothstep 0 -> 1
                 frames = [ReplayFrame(i, i / 25.0, face.render(true_q(model, face, pose, expression, t), bg))
                           for i, t in enumerate(ts)]
@@ -275,6 +283,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                 row["video_status"] = last.status
                 row["video_lost_frames"] = sum(not r.success for r in results)
                 row["video"] = angle_errors(last.rotation, q) if last.success else None
+                row["video_estimate_deg"] = np.degrees(last.rotation).tolist()
                 rows.append(row)
             progress(f"{face.name} expression={expression}: {len(poses)} poses, "
                      f"{time.perf_counter() - t_start:.0f} s so far")
@@ -291,13 +300,13 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                       "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0})
     return {"model": str(model_path), "machine": machine_name(), "grid": grid, "poses": len(poses),
             "faces": [f.name for f in faces], "n_frames": n_frames, "background": background, "rows": rows,
-            "summary": summarise(rows), "drift": drift}
+            "summary": summarise(rows), "bias": bias_by_angle(rows), "drift": drift}
 
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Median and p95 of each error per (method, expression), over the grid and faces."""
     out = []
-    for method in ("still", "video"):
+    for method in ("still", "video", "from_truth"):
         for expression in (False, True):
             sel = [r for r in rows if r["expression"] == expression]
             errs = [r[method] for r in sel if r[method] is not None]
@@ -311,6 +320,21 @@ def summarise(rows: list[dict]) -> list[dict]:
     return out
 
 
+def bias_by_angle(rows: list[dict]) -> list[dict]:
+    """Median signed error (estimate - true, degrees) of each axis at each of its true values (over the other
+    axes, faces and expressions), still and video: shows whether an axis is under- or over-estimated."""
+    out = []
+    for axis, k in (("pitch", 0), ("yaw", 1), ("roll", 2)):
+        for v in sorted({r[axis] for r in rows}):
+            sel = [r for r in rows if r[axis] == v]
+            s = {"axis": axis, "true": v, "n": len(sel)}
+            for method in ("still", "video", "from_truth"):
+                d = [r[f"{method}_estimate_deg"][k] - v for r in sel if r[method] is not None]
+                s[method] = float(np.median(d)) if d else float("nan")
+            out.append(s)
+    return out
+
+
 def table(report: dict) -> str:
     lines = ["| method | expression | poses x faces | lost | pitch med / p95 | yaw med / p95 | roll med / p95 "
              "| geodesic med / p95 | target (<= 2 / 5) |", "|" + "---|" * 9]
@@ -318,6 +342,10 @@ def table(report: dict) -> str:
         cells = [f"{s[k + '_median']:.2f} / {s[k + '_p95']:.2f}" for k in ("pitch", "yaw", "roll", "geodesic")]
         lines.append(f"| {s['method']} | {'yes' if s['expression'] else 'no'} | {s['n']} | {s['lost']} | "
                      + " | ".join(cells) + f" | {'met' if s['target_met'] else 'not met'} |")
+    lines += ["", "| axis | true | n | median (est - true): still | video | from truth |", "|---|---|---|---|---|---|"]
+    for b in report["bias"]:
+        lines.append(f"| {b['axis']} | {b['true']:+d} | {b['n']} | {b['still']:+.2f} | {b['video']:+.2f} "
+                     f"| {b['from_truth']:+.2f} |")
     lines += ["", "| drift: face | frames tracked | pitch drift | yaw drift | roll drift | frame 0 geodesic error |",
               "|---|---|---|---|---|---|"]
     for d in report["drift"]:

@@ -20,7 +20,8 @@ Measurements per pose (the first two are the check; the third is a diagnostic):
 Errors: per axis |estimated - true| (degrees; rx = pitch, ry = yaw, rz = roll, the model's R = Rz Ry Rx) and
 the geodesic angle between R_est and R_true; median and p95 over the grid per condition.
 
-A drift check tracks 100 identical frames of a frontal, neutral render and reports max |angle - frame 0's|.
+A drift check tracks 100 identical frames of a frontal, neutral render and reports per axis the drift
+max |angle - frame 0's| (degrees), and the geodesic error to the truth at the first and last frames.
 
     python benchmarks/pose_check.py --model models/3d.npz [--faces 3] [--grid axes|full] [--json OUT]
 """
@@ -296,8 +297,11 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
         rot = np.degrees(np.array([r.rotation for r in ok])) if ok else np.zeros((0, 3))
         d = np.abs(rot - rot[0]).max(0) if ok else np.full(3, np.nan)
         err0 = angle_errors(ok[0].rotation, q)["geodesic"] if ok else float("nan")
+        err1 = angle_errors(ok[-1].rotation, q)["geodesic"] if ok else float("nan")
         drift.append({"face": face.name, "frames": drift_frames, "tracked": len(ok), "pitch_drift": float(d[0]),
-                      "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0})
+                      "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0,
+                      "last_frame_geodesic": err1,
+                      "pitch_yaw_roll_deg": rot.tolist()})
     return {"model": str(model_path), "machine": machine_name(), "grid": grid, "poses": len(poses),
             "faces": [f.name for f in faces], "n_frames": n_frames, "background": background, "rows": rows,
             "summary": summarise(rows), "bias": bias_by_angle(rows), "drift": drift}
@@ -346,11 +350,11 @@ def table(report: dict) -> str:
     for b in report["bias"]:
         lines.append(f"| {b['axis']} | {b['true']:+d} | {b['n']} | {b['still']:+.2f} | {b['video']:+.2f} "
                      f"| {b['from_truth']:+.2f} |")
-    lines += ["", "| drift: face | frames tracked | pitch drift | yaw drift | roll drift | frame 0 geodesic error |",
-              "|---|---|---|---|---|---|"]
+    lines += ["", "| drift: face | frames tracked | pitch drift | yaw drift | roll drift | geodesic error frame 0 "
+              "| last frame |", "|---|---|---|---|---|---|---|"]
     for d in report["drift"]:
         lines.append(f"| {d['face']} | {d['tracked']}/{d['frames']} | {d['pitch_drift']:.2f} | {d['yaw_drift']:.2f} "
-                     f"| {d['roll_drift']:.2f} | {d['first_frame_geodesic']:.2f} |")
+                     f"| {d['roll_drift']:.2f} | {d['first_frame_geodesic']:.2f} | {d['last_frame_geodesic']:.2f} |")
     return "\n".join(lines)
 
 
@@ -366,9 +370,15 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, help="first N poses of the grid only")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
-    report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
-                 drift_frames=args.drift_frames, background=args.background, limit=args.limit,
-                 progress=lambda s: print(s, file=sys.stderr))
+    from aamtrack.errors import AamtrackError
+
+    try:
+        report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
+                     drift_frames=args.drift_frames, background=args.background, limit=args.limit,
+                     progress=lambda s: print(s, file=sys.stderr))
+    except AamtrackError as e:  # unreadable model or data: one line, no traceback
+        print(f"pose_check: {e}", file=sys.stderr)
+        return 2
     print(f"model {report['model']}, {report['poses']} poses ({report['grid']} grid) x {len(report['faces'])} faces "
           f"({', '.join(report['faces'])}), {report['background']} background; machine: {report['machine']}")
     print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")

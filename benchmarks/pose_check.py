@@ -1,0 +1,394 @@
+"""Head pose on synthetic renders of a textured face at known poses (issue 10, item 3).
+
+A real face (a helen_train image) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``)
+and the image becomes the mesh's texture at that fit. The textured mesh is then rendered at known poses
+(yaw, pitch, roll; with and without an expression) into a noise (or plain) background by a painter's
+rasteriser: triangles sorted back to front by depth, back faces culled, each one an affine warp of its source
+triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears (no hair, ears, neck or shoulders),
+and texture hidden or foreshortened in the source photo is stretched: the renders are easier than real heads
+in that the background is plain, and harder in that the face's edge is a hard cut.
+
+Measurements per pose (the first two are the check; the third is a diagnostic):
+- still: one ``Searcher.fit`` from the true position and scale but a frontal pose (rotation 0, animation
+  units and shape units 0; the shape units are searched);
+- video: ~30 frames turning smoothly (smoothstep) from frontal to the pose, the expression ramping with it,
+  tracked by ``Tracker.track`` from a Haar detection; error at the last frame (a lost last frame is counted
+  apart, not in the error statistics);
+- from truth: one ``Searcher.fit`` started at the true pose and expression with the shape units pinned to the
+  source fit's: the error is how far the search's fixed point lies from the truth (its bias), apart from
+  capture range.
+Errors: per axis |estimated - true| (degrees; rx = pitch, ry = yaw, rz = roll, the model's R = Rz Ry Rx) and
+the geodesic angle between R_est and R_true; median and p95 over the grid per condition.
+
+A drift check tracks 100 identical frames of a frontal, neutral render and reports per axis the drift
+max |angle - frame 0's| (degrees), and the geodesic error to the truth at the first and last frames.
+
+    python benchmarks/pose_check.py --model models/3d.npz [--faces 3] [--grid axes|full] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import machine_name  # noqa: E402
+
+TARGET_MEDIAN_DEG = 2.0  # issue 10: median angle error <= 2 degrees over the pose grid
+TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
+YAWS = (-45, -30, -15, 0, 15, 30, 45)
+PITCHES = (-30, -15, 0, 15, 30)
+ROLLS = (-30, 0, 30)
+EXPRESSION = {"jaw_drop": 0.5, "lip_stretcher": 0.5}
+CANVAS = 360  # rendered frames are CANVAS x CANVAS
+FACE_WIDTH_PX = 160.0  # frontal width of the mean mesh in the renders
+
+
+# -- geometry -----------------------------------------------------------------------------------------------
+def rotation(rx: float, ry: float, rz: float) -> np.ndarray:
+    """(3, 3) R = Rz @ Ry @ Rx (radians), the model's convention."""
+    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def posed(X: np.ndarray, q) -> tuple[np.ndarray, np.ndarray]:
+    """Weak-perspective view of model points X (n, 3) under q = [rx, ry, rz, s, tx, ty, ...]: image points
+    (n, 2) (u = s (RX)_x + tx, v = -s (RX)_y + ty) and depth (n,) = (RX)_z (larger is nearer the camera)."""
+    RX = X @ rotation(q[0], q[1], q[2]).T
+    uv = np.column_stack([q[3] * RX[:, 0] + q[4], -q[3] * RX[:, 1] + q[5]])
+    return uv, RX[:, 2]
+
+
+def geodesic_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Angle (degrees) of the rotation R_a^T R_b."""
+    c = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def angle_errors(est, true) -> dict:
+    """Per-axis |est - true| (degrees, wrapped to 180) and the geodesic angle, from radians (rx, ry, rz)."""
+    d = np.degrees(np.asarray(est[:3], float) - np.asarray(true[:3], float))
+    d = np.abs((d + 180.0) % 360.0 - 180.0)
+    return {"pitch": float(d[0]), "yaw": float(d[1]), "roll": float(d[2]),
+            "geodesic": geodesic_deg(rotation(*est[:3]), rotation(*true[:3]))}
+
+
+# -- rendering ----------------------------------------------------------------------------------------------
+def orient_triangles(triangles: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """(t, 3) int triangles rewound consistently (every inner edge crossed in opposite directions by its two
+    triangles, spread from each connected piece's first triangle), each piece then flipped so that its
+    area-weighted normal points towards +z (outward for a face seen from the front) at ``vertices`` (n, 3).
+    Candide-3's triangle list is not consistently wound, so culling needs this."""
+    from collections import defaultdict, deque
+
+    tri = np.array(triangles, dtype=np.int64)
+    by_edge = defaultdict(list)
+    for i, (a, b, c) in enumerate(tri):
+        for u, v in ((a, b), (b, c), (c, a)):
+            by_edge[(min(u, v), max(u, v))].append(i)
+    done = np.zeros(len(tri), bool)
+    for seed in range(len(tri)):
+        if done[seed]:
+            continue
+        done[seed] = True
+        piece, queue = [seed], deque([seed])
+        while queue:
+            i = queue.popleft()
+            a, b, c = tri[i]
+            for u, v in ((a, b), (b, c), (c, a)):
+                for j in by_edge[(min(u, v), max(u, v))]:
+                    if done[j]:
+                        continue
+                    x, y, z = tri[j]
+                    if (u, v) in ((x, y), (y, z), (z, x)):  # same direction: j is wound the other way
+                        tri[j] = tri[j][::-1]
+                    done[j] = True
+                    piece.append(j)
+                    queue.append(j)
+        t = tri[piece]
+        n = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
+        if n[:, 2].sum() < 0:
+            tri[piece] = t[:, ::-1]
+    return tri
+
+
+def render(texture: np.ndarray, src_uv: np.ndarray, dst_uv: np.ndarray, depth: np.ndarray, triangles: np.ndarray,
+           background: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Painter's rasteriser: each triangle of ``triangles`` (t, 3) is the affine warp of ``texture`` from its
+    source corners ``src_uv`` (n, 2) to its destination corners ``dst_uv`` (n, 2), drawn back to front by
+    the mean ``depth`` (n,) of its corners (larger is nearer); triangles whose destination is wound clockwise
+    on screen (image y down), i.e. facing away for the model's outward-wound mesh, are culled.
+
+    Returns (image like ``background``, (H, W) bool mask of the pixels drawn). Approximation: the visibility
+    is per triangle (no z-buffer), exact for a mesh without interpenetrating triangles."""
+    out = background.copy()
+    H, W = out.shape[:2]
+    drawn = np.zeros((H, W), bool)
+    tri = np.asarray(triangles)
+    a, b, c = dst_uv[tri[:, 0]], dst_uv[tri[:, 1]], dst_uv[tri[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    order = np.argsort(depth[tri].mean(1), kind="stable")
+    for t in order:
+        if area2[t] >= -1e-9:  # counter-clockwise in model (y up) = clockwise on screen: front faces are < 0
+            continue
+        d = dst_uv[tri[t]].astype(np.float64)
+        x0, y0 = np.floor(d.min(0)).astype(int)
+        x1, y1 = np.ceil(d.max(0)).astype(int) + 1
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        off = np.array([x0, y0], float)
+        M = cv2.getAffineTransform(src_uv[tri[t]].astype(np.float32), (d - off).astype(np.float32))
+        patch = cv2.warpAffine(texture, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_REPLICATE)
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillConvexPoly(mask, np.round((d - off) * 16).astype(np.int32), 1, lineType=cv2.LINE_8, shift=4)
+        m = mask.astype(bool)
+        out[y0:y1, x0:x1][m] = patch[m]
+        drawn[y0:y1, x0:x1] |= m
+    return out, drawn
+
+
+def make_background(kind: str, rng: np.random.Generator, shape=(CANVAS, CANVAS, 3)) -> np.ndarray:
+    """uint8 background: "plain" mid grey, or "noise" (grey noise blurred to ~3 px blobs)."""
+    if kind == "plain":
+        return np.full(shape, 128, np.uint8)
+    noise = rng.normal(128, 60, shape[:2]).astype(np.float32)
+    noise = cv2.GaussianBlur(noise, (0, 0), 1.5)
+    noise = (noise - noise.mean()) * (40.0 / max(noise.std(), 1e-6)) + 128
+    return np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[:, :, None], shape[2], axis=2)
+
+
+# -- the face -----------------------------------------------------------------------------------------------
+class TexturedFace:
+    """One source photo fitted by the model: ``render(q)`` draws the textured mesh at q = [rx, ry, rz, s, tx,
+    ty, anim coefficients] (the person's fitted shape units held)."""
+
+    def __init__(self, model, image: np.ndarray, fit_p: np.ndarray, fit_vertices: np.ndarray, name: str):
+        self.sm = model.shape
+        self.image, self.name = image, name
+        self.sigma = fit_p[self.sm.n_q:].copy()
+        self.src_p = fit_p.copy()
+        self.src_uv = fit_vertices.copy()
+        self.triangles = orient_triangles(self.sm.triangles, self.sm.mean)
+
+    def view(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return posed(self.sm.shape3d(q, self.sigma), q)
+
+    def render(self, q: np.ndarray, background: np.ndarray) -> np.ndarray:
+        uv, z = self.view(q)
+        return render(self.image, self.src_uv, uv, z, self.triangles, background)[0]
+
+
+def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0, max_nme: float = 0.06) -> list:
+    """The first ``n_faces`` helen_train photos (sorted by name) that the model fits confidently, near
+    frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme)."""
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.metrics import nme
+    from aamtrack.track.tracker import Tracker
+
+    tracker = Tracker(model)
+    out = []
+    for img_path, pts_path in find_pairs(data):
+        img, pts = load_pair(img_path, pts_path)
+        if img.ndim == 2:
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        box = tracker.detector.detect(img)
+        if box is None:
+            continue
+        res, _ = tracker.fit_roi(img, tracker.detection_starts(box))
+        if (res.confidence < tracker.config.min_confidence or np.degrees(np.abs(res.p[:3])).max() > max_angle_deg
+                or float(nme(res.landmarks, pts)) > max_nme):
+            continue
+        out.append(TexturedFace(model, img, res.p, res.vertices, img_path.name))
+        if len(out) == n_faces:
+            break
+    return out
+
+
+def pose_grid(kind: str) -> list[tuple[int, int, int]]:
+    """(pitch, yaw, roll) degrees. "full": the whole product; "axes": each axis alone, plus the corners of
+    yaw +-30/pitch +-15 and yaw +-30/roll +-30 and two 3-axis combinations."""
+    if kind == "full":
+        return [(p, y, r) for y in YAWS for p in PITCHES for r in ROLLS]
+    g = [(0, y, 0) for y in YAWS] + [(p, 0, 0) for p in PITCHES if p] + [(0, 0, r) for r in ROLLS if r]
+    g += [(p, y, 0) for p in (-15, 15) for y in (-30, 30)] + [(0, y, r) for r in (-30, 30) for y in (-30, 30)]
+    g += [(15, 30, 30), (-15, -30, -30)]
+    return g
+
+
+def true_q(model, face: TexturedFace, pose_deg, expression: bool, t: float = 1.0) -> np.ndarray:
+    """Search-vector pose part [rx, ry, rz, s, tx, ty, anim] for pose_deg = (pitch, yaw, roll) at fraction t."""
+    sm = model.shape
+    q = np.zeros(sm.n_q)
+    q[:3] = np.radians(pose_deg) * t
+    q[3] = FACE_WIDTH_PX / sm.frontal_width()
+    q[4], q[5] = CANVAS / 2, CANVAS / 2 + 0.05 * FACE_WIDTH_PX
+    if expression:
+        for name, v in EXPRESSION.items():
+            q[6 + sm.coef_names.index(name)] = v * t
+    return q
+
+
+def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int, drift_frames: int,
+        background: str, limit: int | None, seed: int = 0, progress=print) -> dict:
+    from aamtrack.imaging import to_gray32
+    from aamtrack.model import load_model
+    from aamtrack.search import Searcher
+    from aamtrack.track.replay import ReplayFrame
+    from aamtrack.track.tracker import Tracker
+
+    model = load_model(model_path)
+    sm = model.shape
+    for name in EXPRESSION:
+        if name not in sm.coef_names:
+            raise SystemExit(f"{model_path}: no animation unit {name!r} for the expression")
+    searcher = Searcher(model)
+    rng = np.random.default_rng(seed)
+    faces = source_faces(model, data, n_faces)
+    if not faces:
+        raise SystemExit(f"no helen_train image in {data} was fitted near frontal to use as a texture")
+    poses = pose_grid(grid)[:limit]
+    rows = []
+    t_start = time.perf_counter()
+    for face in faces:
+        for expression in (False, True):
+            for pose in poses:
+                bg = make_background(background, rng)
+                q = true_q(model, face, pose, expression)
+                img = face.render(np.r_[q], bg)
+                p0 = np.zeros(searcher.n_params)
+                p0[3:6] = q[3:6]
+                res = searcher.fit(searcher.levels(to_gray32(img)), p0)
+                row = {"face": face.name, "expression": expression, "pitch": pose[0], "yaw": pose[1],
+                       "roll": pose[2], "still": angle_errors(res.p, q), "still_confidence": res.confidence,
+                       "still_estimate_deg": np.degrees(res.p[:3]).tolist()}
+                # diagnostic: start at the truth, the person's shape units pinned: where the search's fixed point is
+                res = searcher.fit(searcher.levels(to_gray32(img)), np.r_[q, face.sigma], face.sigma)
+                row["from_truth"] = angle_errors(res.p, q)
+                row["from_truth_estimate_deg"] = np.degrees(res.p[:3]).tolist()
+                ts = 0.5 - 0.5 * np.cos(np.pi * np.linspace(0, 1, n_frames))  # smoothstep 0 -> 1
+                frames = [ReplayFrame(i, i / 25.0, face.render(true_q(model, face, pose, expression, t), bg))
+                          for i, t in enumerate(ts)]
+                results = list(Tracker(model).track(frames))
+                last = results[-1]
+                row["video_status"] = last.status
+                row["video_lost_frames"] = sum(not r.success for r in results)
+                row["video"] = angle_errors(last.rotation, q) if last.success else None
+                row["video_estimate_deg"] = np.degrees(last.rotation).tolist()
+                rows.append(row)
+            progress(f"{face.name} expression={expression}: {len(poses)} poses, "
+                     f"{time.perf_counter() - t_start:.0f} s so far")
+    drift = []
+    for face in faces:
+        q = true_q(model, face, (0, 0, 0), False)
+        img = face.render(q, make_background(background, rng))
+        results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, img) for i in range(drift_frames)))
+        ok = [r for r in results if r.success]
+        rot = np.degrees(np.array([r.rotation for r in ok])) if ok else np.zeros((0, 3))
+        d = np.abs(rot - rot[0]).max(0) if ok else np.full(3, np.nan)
+        err0 = angle_errors(ok[0].rotation, q)["geodesic"] if ok else float("nan")
+        err1 = angle_errors(ok[-1].rotation, q)["geodesic"] if ok else float("nan")
+        drift.append({"face": face.name, "frames": drift_frames, "tracked": len(ok), "pitch_drift": float(d[0]),
+                      "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0,
+                      "last_frame_geodesic": err1,
+                      "pitch_yaw_roll_deg": rot.tolist()})
+    return {"model": str(model_path), "machine": machine_name(), "grid": grid, "poses": len(poses),
+            "faces": [f.name for f in faces], "n_frames": n_frames, "background": background, "rows": rows,
+            "summary": summarise(rows), "bias": bias_by_angle(rows), "drift": drift}
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    """Median and p95 of each error per (method, expression), over the grid and faces."""
+    out = []
+    for method in ("still", "video", "from_truth"):
+        for expression in (False, True):
+            sel = [r for r in rows if r["expression"] == expression]
+            errs = [r[method] for r in sel if r[method] is not None]
+            s = {"method": method, "expression": expression, "n": len(sel), "lost": len(sel) - len(errs)}
+            for key in ("pitch", "yaw", "roll", "geodesic"):
+                v = np.array([e[key] for e in errs]) if errs else np.full(1, np.nan)
+                s[f"{key}_median"], s[f"{key}_p95"] = float(np.median(v)), float(np.percentile(v, 95))
+            s["target_met"] = bool(s["geodesic_median"] <= TARGET_MEDIAN_DEG and s["geodesic_p95"] <= TARGET_P95_DEG
+                                   and s["lost"] == 0)
+            out.append(s)
+    return out
+
+
+def bias_by_angle(rows: list[dict]) -> list[dict]:
+    """Median signed error (estimate - true, degrees) of each axis at each of its true values (over the other
+    axes, faces and expressions), still and video: shows whether an axis is under- or over-estimated."""
+    out = []
+    for axis, k in (("pitch", 0), ("yaw", 1), ("roll", 2)):
+        for v in sorted({r[axis] for r in rows}):
+            sel = [r for r in rows if r[axis] == v]
+            s = {"axis": axis, "true": v, "n": len(sel)}
+            for method in ("still", "video", "from_truth"):
+                d = [r[f"{method}_estimate_deg"][k] - v for r in sel if r[method] is not None]
+                s[method] = float(np.median(d)) if d else float("nan")
+            out.append(s)
+    return out
+
+
+def table(report: dict) -> str:
+    lines = ["| method | expression | poses x faces | lost | pitch med / p95 | yaw med / p95 | roll med / p95 "
+             "| geodesic med / p95 | target (<= 2 / 5) |", "|" + "---|" * 9]
+    for s in report["summary"]:
+        cells = [f"{s[k + '_median']:.2f} / {s[k + '_p95']:.2f}" for k in ("pitch", "yaw", "roll", "geodesic")]
+        lines.append(f"| {s['method']} | {'yes' if s['expression'] else 'no'} | {s['n']} | {s['lost']} | "
+                     + " | ".join(cells) + f" | {'met' if s['target_met'] else 'not met'} |")
+    lines += ["", "| axis | true | n | median (est - true): still | video | from truth |", "|---|---|---|---|---|---|"]
+    for b in report["bias"]:
+        lines.append(f"| {b['axis']} | {b['true']:+d} | {b['n']} | {b['still']:+.2f} | {b['video']:+.2f} "
+                     f"| {b['from_truth']:+.2f} |")
+    lines += ["", "| drift: face | frames tracked | pitch drift | yaw drift | roll drift | geodesic error frame 0 "
+              "| last frame |", "|---|---|---|---|---|---|---|"]
+    for d in report["drift"]:
+        lines.append(f"| {d['face']} | {d['tracked']}/{d['frames']} | {d['pitch_drift']:.2f} | {d['yaw_drift']:.2f} "
+                     f"| {d['roll_drift']:.2f} | {d['first_frame_geodesic']:.2f} | {d['last_frame_geodesic']:.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", type=Path, default=Path("models/3d.npz"))
+    ap.add_argument("--data", type=Path, default=Path("../shared/data/300w/helen_train"))
+    ap.add_argument("--faces", type=int, default=3, help="source photos (textures)")
+    ap.add_argument("--grid", choices=("axes", "full"), default="axes")
+    ap.add_argument("--frames", type=int, default=30, help="frames of each video, frontal to the pose")
+    ap.add_argument("--drift-frames", type=int, default=100)
+    ap.add_argument("--background", choices=("noise", "plain"), default="noise")
+    ap.add_argument("--limit", type=int, help="first N poses of the grid only")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    from aamtrack.errors import AamtrackError
+
+    try:
+        report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
+                     drift_frames=args.drift_frames, background=args.background, limit=args.limit,
+                     progress=lambda s: print(s, file=sys.stderr))
+    except AamtrackError as e:  # unreadable model or data: one line, no traceback
+        print(f"pose_check: {e}", file=sys.stderr)
+        return 2
+    print(f"model {report['model']}, {report['poses']} poses ({report['grid']} grid) x {len(report['faces'])} faces "
+          f"({', '.join(report['faces'])}), {report['background']} background; machine: {report['machine']}")
+    print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")
+    print(table(report))
+    if args.json:
+        tmp = args.json.with_name(args.json.name + ".tmp")
+        tmp.write_text(json.dumps(report, indent=1))
+        tmp.replace(args.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

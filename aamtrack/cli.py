@@ -58,13 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "lost, files written, and FFmpeg's and OpenCV's own warnings")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
-        try:
-            module = importlib.import_module(f".commands.{name}", __package__)
-        except ModuleNotFoundError as exc:  # a command not built yet in this checkout
-            if exc.name != f"{__package__}.commands.{name}":
-                raise
-            continue
-        module.register(sub)
+        importlib.import_module(f".commands.{name}", __package__).register(sub)
     return parser
 
 

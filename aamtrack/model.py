@@ -23,11 +23,11 @@ from . import __version__
 from .errors import ModelFileError
 from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
+from .io.pts import N_LANDMARKS
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
 FORMAT_VERSION = 2
-N_LANDMARKS = 68
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
 
 

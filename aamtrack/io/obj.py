@@ -21,8 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 from .atomic import atomic_write, commit_temporary, discard_temporary, temporary_path
-
-N_LANDMARKS = 68
+from .pts import N_LANDMARKS
 MAX_COORDINATE = 1e6  # |coordinate| above this is a unit or file error (a face is ~0.2 m, 20 cm, 200 mm)
 MIN_EXTENT = 1e-6  # a mesh smaller than this across is degenerate
 NPZ_MESH_KEYS = "`vertices` (M, 3) [+ `faces`, `landmark68`] or ICT FaceKit's `neutral`, `quads`, `landmark68_vertex_idx`"

@@ -237,3 +237,54 @@ def test_cascade_leaves_pinned_parameters():
     _cascade(image, 1.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32), np.zeros((D, 0), np.float32),
              vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D), np.empty(3))
     assert p[6] == q[6] and not np.allclose(p[4:6], q[4:6])  # held stays, the rest moved
+
+
+def test_accumulate_gradient_matches_a_loop_of_residuals():
+    """G += sum_d d (e(q0 (+) d) - e(q0)) / sum_d d^2, per free parameter, against the same sum written out."""
+    from aamtrack._kernels.warp import _accumulate_gradient
+
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng)
+    D = 2 * len(vid)
+    mean = rng.normal(0, 1, D).astype(np.float32)
+    app = np.linalg.qr(rng.normal(0, 1, (D, 2)))[0].astype(np.float32)
+    free = np.array([2, 4, 6])
+    steps = np.array([[0.02, -0.02, 0.05, -0.05], [0.1, -0.1, 0.3, -0.3], [0.05, -0.05, 0.2, -0.2]])
+    G = np.zeros((D, 3))
+    e0 = np.empty(D)
+    _accumulate_gradient(image, 1.0, shape3d, basis, q, free, steps, mean, app, vid, bary, 1, G, e0)
+    scratch = (np.empty((4, 2)), np.empty(D, np.float32), np.empty(2))
+    base = np.empty(D)
+    _residual(image, 1.0, shape3d, basis, q, mean, app, vid, bary, 1, *scratch, base)
+    inf = np.full(7, np.inf)
+    for a in range(3):
+        ref = np.zeros(D)
+        for d in steps[a]:
+            qd, e = np.empty(7), np.empty(D)
+            _compose(q, free, np.eye(3)[a] * d, 1.0, -inf, inf, qd)
+            _residual(image, 1.0, shape3d, basis, qd, mean, app, vid, bary, 1, *scratch, e)
+            ref += d * (e - base) / (steps[a] ** 2).sum()
+        assert np.abs(G[:, a] - ref).max() < 1e-9
+    assert np.abs(e0 - base).max() < 1e-12
+
+
+@pytest.mark.parametrize("r", [0.5, 0.3, 0.17])
+def test_levels_half_pixel_mapping(r):
+    """A level resampled by r (halvings, then one resize) holds the source at x = (x' + 0.5) / r - 0.5, the mapping
+    ``imaging.level_offset`` folds into the translation. On a linear ramp away from the border: exact at r = 0.5
+    (measured 0), within a tenth of a level pixel at other ratios (INTER_AREA's weights at non-integer ratios;
+    measured 0.05 at r = 0.3, 0.08 at r = 0.17)."""
+    from aamtrack.imaging import Features, Levels, level_offset
+
+    yy, xx = np.mgrid[0:240, 0:320].astype(np.float32)
+    ramp = 0.3 * xx + 0.7 * yy + 10.0
+    level = Levels(ramp, Features("intensity", lcn_sigma=0.0)).get(r)[0]
+    h, w = level.shape
+    ys, xs = np.mgrid[3:h - 3, 3:w - 3]
+    src_x = (xs + 0.5) / r - 0.5
+    src_y = (ys + 0.5) / r - 0.5
+    grey_err = np.abs(level[3:h - 3, 3:w - 3] - (0.3 * src_x + 0.7 * src_y + 10.0)).max()
+    level_px = grey_err / np.hypot(0.3, 0.7) * r  # the ramp's grey error as a position error in level pixels
+    assert level_px < (1e-3 if r == 0.5 else 0.1)
+    # the kernels sample a level at r * x: the search shifts x by level_offset(r) so that r * (x + d) = r x + r/2 - 1/2
+    assert r * level_offset(r) == pytest.approx(0.5 * r - 0.5)

@@ -43,3 +43,21 @@ def test_unturn_inverts_the_turn():
     M = cv2.getRotationMatrix2D((50.0, 40.0), 30.0, 1.0)
     pts = np.array([[10.0, 20.0], [70.0, 5.0], [33.0, 61.0]])
     assert np.abs(unturn(pts @ M[:, :2].T + M[:, 2], 30.0, (80, 100)) - pts).max() < 1e-9
+
+
+@pytest.mark.parametrize("width,expected_widths", [(640, (320, 640, 320, 320)), (320, (320, 320, 320))])
+def test_find_searches_upright_then_wider_then_turned(width, expected_widths):
+    """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at twice it (only
+    for frames wider than DETECT_WIDTH: small faces), then turned by +30 and -30 degrees."""
+    from aamtrack import detector as det_module
+
+    calls = []
+
+    class Recording(HaarDetector):
+        def detect_all(self, gray, angle=0.0, width=0):
+            calls.append((angle, width))
+            return super().detect_all(gray, angle, width)
+
+    assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
+    assert [w for _, w in calls] == [w * det_module.DETECT_WIDTH // 320 for w in expected_widths]
+    assert [a for a, _ in calls] == [0.0] * (len(calls) - 2) + [30.0, -30.0]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import platform
 from pathlib import Path
@@ -18,3 +20,24 @@ def machine_name() -> str:
     except OSError:
         pass
     return f"{name}, {os.cpu_count()} logical CPUs"
+
+
+def json_safe(value):
+    """``value`` with NaN as None, tuples as lists and numpy scalars and arrays as Python numbers and lists."""
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy scalar or array, without importing numpy here
+        return json_safe(value.tolist())
+    return value
+
+
+def write_json(path: Path, result, *, indent: int = 1) -> None:
+    """Write ``json_safe(result)`` to ``path`` under a temporary name, renamed when complete."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(json_safe(result), indent=indent) + "\n")
+    tmp.replace(path)

@@ -35,7 +35,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUME
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -454,16 +453,6 @@ def plot_video(plt, rows, path: Path, still_mask=None) -> None:
     plt.close(fig)
 
 
-def _json_safe(value):
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        return _json_safe(value.item())
-    return value
 
 
 # ------------------------------------------------------------------------------------------------- script
@@ -484,7 +473,7 @@ def main(argv=None) -> int:
 
     import cv2
 
-    from _common import machine_name
+    from _common import machine_name, write_json
 
     cv2.setNumThreads(1)
 
@@ -539,9 +528,7 @@ def main(argv=None) -> int:
             say(f"wrote {args.plot / 'video_nme.png'}")
 
     if args.json is not None:
-        tmp = args.json.with_name(args.json.name + ".tmp")
-        tmp.write_text(json.dumps(_json_safe(result), indent=1) + "\n")
-        tmp.replace(args.json)
+        write_json(args.json, result, indent=1)
         say(f"wrote {args.json}")
     return 0
 

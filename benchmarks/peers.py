@@ -65,7 +65,6 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")  # MediaPipe's TFLite start-u
 os.environ.setdefault("GLOG_minloglevel", "2")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
@@ -100,7 +99,7 @@ STILLS = "300w/helen_test"
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
 
-from _common import machine_name  # noqa: E402
+from _common import machine_name, write_json  # noqa: E402
 from peer_runners import (  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
     PeerRun,
     PeerUnavailable,
@@ -294,14 +293,6 @@ def _versions() -> dict:
     return versions
 
 
-def _json_safe(value):
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_json_safe(v) for v in value]
-    return value
 
 
 def _extra(run: PeerRun) -> dict:
@@ -431,9 +422,7 @@ def main(argv=None) -> int:
         result["stills_rows"] = still_rows
 
     if args.json is not None:
-        tmp = args.json.with_name(args.json.name + ".tmp")
-        tmp.write_text(json.dumps(_json_safe(result), indent=2) + "\n")
-        tmp.replace(args.json)
+        write_json(args.json, result, indent=2)
         say(f"wrote {args.json}")
     return 0
 

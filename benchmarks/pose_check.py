@@ -29,7 +29,6 @@ max |angle - frame 0's| (degrees), and the geodesic error to the truth at the fi
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -38,7 +37,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import machine_name  # noqa: E402
+from _common import machine_name, write_json  # noqa: E402
 
 TARGET_MEDIAN_DEG = 2.0  # issue 10: median angle error <= 2 degrees over the pose grid
 TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
@@ -384,9 +383,7 @@ def main(argv=None) -> int:
     print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")
     print(table(report))
     if args.json:
-        tmp = args.json.with_name(args.json.name + ".tmp")
-        tmp.write_text(json.dumps(report, indent=1))
-        tmp.replace(args.json)
+        write_json(args.json, report)
     return 0
 
 

@@ -55,7 +55,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUME
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -71,7 +70,7 @@ for _path in (str(REPO), str(Path(__file__).resolve().parent)):
     if _path not in sys.path:
         sys.path.insert(0, _path)
 
-from _common import machine_name  # noqa: E402
+from _common import machine_name, write_json  # noqa: E402
 from aamtrack.mesh.landmarks import IBUG_MIRROR  # noqa: E402
 from aamtrack.metrics import eye_distance, nme  # noqa: E402
 
@@ -468,16 +467,6 @@ def markdown_table(kind: str, rows) -> str:
     return "\n".join(lines)
 
 
-def _json_safe(value):
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        return _json_safe(value.item())
-    return value
 
 
 # ------------------------------------------------------------------------------------------------- script
@@ -590,9 +579,7 @@ def main(argv=None) -> int:
     result["cpu_seconds"] = time.process_time() - cpu_start  # this process, all threads (one, here)
     print(f"\n{passed} of {len(all_rows)} rows pass; {result['seconds']:.0f} s wall, {result['cpu_seconds']:.0f} s CPU")
     if args.json is not None:
-        tmp = args.json.with_name(args.json.name + ".tmp")
-        tmp.write_text(json.dumps(_json_safe(result), indent=1) + "\n")
-        tmp.replace(args.json)
+        write_json(args.json, result, indent=1)
         say(f"wrote {args.json}")
     return 0
 

@@ -38,3 +38,13 @@ def synth_model(synth_data):
     images, points = synth_data
     model, _ = train_model(images, points, "2d", config=TrainConfig(couples=SYNTH_COUPLES, pose_only_couples=2))
     return model
+
+
+@pytest.fixture(scope="session")
+def model_file(tmp_path_factory, synth_model):
+    """The synthetic 2D model saved as a model file, for the command-line tests."""
+    from aamtrack.model import save_model
+
+    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
+    save_model(synth_model, path)
+    return path

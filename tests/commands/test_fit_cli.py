@@ -8,16 +8,8 @@ import pytest
 from aamtrack.cli import main
 from aamtrack.io.csvout import read_tracking_csv
 from aamtrack.io.pts import read_pts
-from aamtrack.model import save_model
 from conftest import SEED
 import synth
-
-
-@pytest.fixture(scope="module")
-def model_file(tmp_path_factory, synth_model):
-    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
-    save_model(synth_model, path)
-    return path
 
 
 @pytest.fixture

@@ -9,7 +9,6 @@ import pytest
 
 from aamtrack.cli import main
 from aamtrack.io.csvout import read_tracking_csv
-from aamtrack.model import save_model
 import synth
 
 
@@ -19,13 +18,6 @@ def video(tmp_path_factory):
     path = tmp_path_factory.mktemp("vid") / "clip.avi"
     synth.write_video(path, frames)
     return path, truth
-
-
-@pytest.fixture(scope="module")
-def model_file(tmp_path_factory, synth_model):
-    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
-    save_model(synth_model, path)
-    return path
 
 
 def _err_line(capsys, *needles):

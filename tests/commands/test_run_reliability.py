@@ -18,7 +18,6 @@ from faults import disk_full, files_below, tiny_tmpfs
 import synth
 from aamtrack.cli import main
 from aamtrack.io.csvout import TrackingCsvWriter, read_tracking_csv
-from aamtrack.model import save_model
 
 N = 8
 
@@ -28,13 +27,6 @@ def video(tmp_path_factory):
     frames, _ = synth.moving_face_frames(N)
     path = tmp_path_factory.mktemp("vid") / "clip.avi"
     synth.write_video(path, frames)
-    return path
-
-
-@pytest.fixture(scope="module")
-def model_file(tmp_path_factory, synth_model):
-    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
-    save_model(synth_model, path)
     return path
 
 

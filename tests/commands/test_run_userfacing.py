@@ -13,7 +13,6 @@ import synth
 from aamtrack.cli import main
 from aamtrack.commands import run as run_cmd
 from aamtrack.io.csvout import read_tracking_csv
-from aamtrack.model import save_model
 
 AWAY = range(8, 14)
 
@@ -24,13 +23,6 @@ def away_video(tmp_path_factory):
     path = tmp_path_factory.mktemp("vid") / "away.avi"
     synth.write_video(path, frames)
     return path, truth
-
-
-@pytest.fixture(scope="module")
-def model_file(tmp_path_factory, synth_model):
-    path = tmp_path_factory.mktemp("model") / "synth2d.npz"
-    save_model(synth_model, path)
-    return path
 
 
 def test_verbose_report_and_smoothing(tmp_path, away_video, model_file, capsys, caplog):

@@ -40,7 +40,8 @@ class FrameResult:
 
     status : one of STATUSES. ``success`` is True for "detected" and "tracked".
     landmarks : (68, 2) float64 image pixels, NaN where not successful
-    landmarks3d : (68, 3) float64 in the model's own frame (pose removed), 3D model only, else None
+    landmarks3d : (68, 3) float64 millimetres in the model's own frame (pose removed; the mean face's outer eye
+        corners 89 mm apart, ``ShapeModel.mm_per_unit``), 3D model only, else None
     rotation : (3,) float64 radians (Rx, Ry, Rz); 2D model: (0, 0, roll)
     translation : (2,) float64 pixels; scale : float (pixels per model unit)
     anim_params, shape_params : 1-D float64, named by the shape model's ``coef_names`` / ``shape_names``

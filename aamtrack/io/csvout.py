@@ -9,7 +9,7 @@ Columns, in order::
     <animation unit names>, <shape parameter names>  (exactly as given)
 
 ``frame`` is 0-based, ``timestamp`` in seconds, rotations in radians, translation and landmarks in image pixels,
-``pose_scale`` in pixels per model unit, 3D landmarks in model units (pose removed). Pixel positions use the
+``pose_scale`` in pixels per model unit, 3D landmarks in millimetres in the model frame (pose removed; scale: ``ShapeModel.mm_per_unit``). Pixel positions use the
 ``.pts`` files' convention (see :mod:`aamtrack.io.pts`). Frames without a face have
 ``success`` 0 and empty landmark, pose and parameter fields; any NaN is written as an empty field.
 """

@@ -19,6 +19,7 @@ from .._kernels.warp import _project, _rotation
 from .landmarks import similarity_fit
 
 POSE_NAMES = ("rx", "ry", "rz", "scale", "tx", "ty")
+EYE_CORNERS_MM = 89.0  # outer eye-corner distance of the average face the 3D landmarks are scaled to (ICT's neutral)
 N_POSE = 6
 
 
@@ -108,8 +109,15 @@ class ShapeModel:
         return self.landmark_map @ self.project(q, shape_params)
 
     def landmarks3d(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
-        """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed)."""
+        """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed), in model units."""
         return self.landmark_map @ self.shape3d(q, shape_params)
+
+    def mm_per_unit(self) -> float:
+        """Millimetres per model unit: the mean face's outer eye corners (iBUG 36, 45) put ``EYE_CORNERS_MM`` apart.
+        An assumed size (weak perspective cannot see the face's real size): a person with wider-set eyes is
+        reported as a larger face, not as wider-set eyes."""
+        lm = self.landmark_map @ self.mean
+        return EYE_CORNERS_MM / float(np.linalg.norm(lm[45] - lm[36]))
 
     def person_view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The same model with sigma searched too: (basis (n_coef + n_shape, n, 3), free indices, lo, hi) for

@@ -71,6 +71,7 @@ class Tracker:
         self.config = config
         self.searcher = Searcher(model)
         self.detector = detector or HaarDetector()
+        self.mm_per_unit = model.shape.mm_per_unit()
         # the ROI needs to cover only what the texture maps sample (Candide's scalp is not in them)
         self.roi_vertices = np.unique(np.concatenate([t.frame.pix_vid.ravel() for t in model.textures]))
 
@@ -167,7 +168,7 @@ class Tracker:
         is3d = sm.kind == "3d"
         return FrameResult(
             frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
-            landmarks=res.landmarks, landmarks3d=sm.landmarks3d(q, sigma) if is3d else None,
+            landmarks=res.landmarks, landmarks3d=sm.landmarks3d(q, sigma) * self.mm_per_unit if is3d else None,
             rotation=q[:3].copy(), translation=q[4:6].copy(), scale=float(q[3]),
             anim_params=q[N_POSE:].copy() if is3d else np.zeros(0),
             shape_params=sigma.copy() if is3d else q[N_POSE:].copy(),

@@ -1,0 +1,28 @@
+"""The shipped models load and track the bundled sample clip (nothing outside the repository needed)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aamtrack.io.frames import open_frames
+from aamtrack.model import load_model
+from aamtrack.models import default_model_path
+from aamtrack.track.tracker import Tracker
+
+SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "cap12_first12s.mp4"
+
+
+@pytest.mark.parametrize("kind", ["3d", "2d"])
+def test_shipped_model_tracks_the_sample(kind):
+    model = load_model(default_model_path(kind))
+    assert model.kind == kind and model.features.kind == "gradient" and model.couples[-1].n_stages >= 1
+    with open_frames(SAMPLE) as frames:
+        results = [r for r, _ in zip(Tracker(model).track(frames), range(30), strict=False)]
+    assert [r.frame for r in results] == list(range(30))
+    assert all(r.success for r in results) and min(r.confidence for r in results) > 0.5
+    eyes = np.array([np.linalg.norm(r.landmarks[45] - r.landmarks[36]) for r in results])
+    assert 40 < np.median(eyes) < 90  # the sample's face: outer eye corners about 60 px apart at 400x300
+    if kind == "3d":
+        mm = np.array([np.linalg.norm(r.landmarks3d[45] - r.landmarks3d[36]) for r in results])
+        assert np.all((mm > 75) & (mm < 105))  # millimetres, scaled to an 89 mm average; this person's own shape

@@ -50,18 +50,9 @@ class Searcher:
     def _tolerances(self, free: np.ndarray, tol: float = DELTA_TOL) -> np.ndarray:
         """(n_free,) Jacobian-search update sizes that count as converged: tol radians / log-scale, tol face
         widths of translation (model units), 5 tol prior spreads of a coefficient or shape unit."""
-        sm = self.model.shape
-        out = np.empty(len(free))
-        for a, j in enumerate(free):
-            if j <= 3:
-                out[a] = tol
-            elif j < N_POSE:
-                out[a] = tol * self.width
-            elif j < sm.n_q:
-                out[a] = 5 * tol * (1.0 if sm.kind == "2d" else 0.5 * (sm.coef_hi[j - 6] - sm.coef_lo[j - 6]))
-            else:
-                out[a] = 5 * tol * sm.shape_sd[j - sm.n_q]
-        return out
+        free = np.asarray(free)
+        return np.where(free <= 3, tol, np.where(free < N_POSE, tol * self.width,
+                                                5 * tol * self.model.shape.spreads()[free]))
 
     def levels(self, gray: np.ndarray) -> Levels:
         """The feature images of a grey frame (H, W) float32 for the couples, built on demand."""
@@ -134,7 +125,7 @@ class Searcher:
         c = self.model.couples[k]
         t = self.model.textures[c.texture]
         r = level_factor(p[3] * self.width, c.face_px) if r is None else r
-        verts, tex, coef, e, delta = self._scratch[len(t.mean)]
+        verts, tex, coef, e, _ = self._scratch[len(t.mean)]
         q = np.array(p, np.float64)
         q[4:6] += level_offset(r)
         m = t.appearance.shape[1]
@@ -146,10 +137,8 @@ class Searcher:
         upd = (c.cascade[-1] @ e + c.cascade_bias[-1]) if c.n_stages else c.update_matrix @ e
         pose_update = 0.0
         for a, j in enumerate(c.free):
-            if j < 3:
+            if j <= 3:  # radians, log-scale
                 pose_update += abs(upd[a])
-            elif j == 3:
-                pose_update += abs(upd[a])
-            elif j < N_POSE:
+            elif j < N_POSE:  # model units of translation, in face widths
                 pose_update += abs(upd[a]) / self.width
         return (float(math.sqrt(err)), corr, energy, math.log10(pose_update + 1e-3))

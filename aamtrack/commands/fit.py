@@ -20,7 +20,7 @@ from ..model import load_model
 from ..models import default_model_path
 from ..track.replay import ReplayFrame
 from ..track.tracker import Tracker
-from .run import output_base, output_dir
+from .run import model_and_output_arguments, output_base, output_dir
 
 EXAMPLES = """examples:
   aamtrack fit photo.jpg
@@ -36,9 +36,7 @@ def register(sub) -> None:
                                    "<name>.json in the output folder.",
                        epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="image file, folder of images, or a quoted glob such as 'photos/*.jpg'")
-    p.add_argument("--model", type=Path, help="model file (default: the shipped 3D model)")
-    p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="which shipped model when --model is not given")
-    p.add_argument("--out-dir", type=Path, help="output folder (default: <input>_aamtrack next to the input)")
+    model_and_output_arguments(p)
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per fitted image "
                    "(<out-dir>/<name>_pts/<image stem>.pts)")
     p.set_defaults(func=run)

@@ -58,9 +58,7 @@ def register(sub) -> None:
                                    "in name order) and write one CSV row per frame plus a JSON summary.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="video file, folder of images, or a quoted glob such as 'frames/*.png'")
-    p.add_argument("--model", type=Path, help="model file (default: the shipped 3D model)")
-    p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="which shipped model when --model is not given")
-    p.add_argument("--out-dir", type=Path, help="output folder (default: <input>_aamtrack next to the input)")
+    model_and_output_arguments(p)
     p.add_argument("--video", action="store_true",
                    help="also write an overlay video: mesh, landmarks, pose axes, frame number, status, confidence")
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per tracked frame")
@@ -78,6 +76,13 @@ def register(sub) -> None:
                    help=f"how fast the cutoff rises with speed (Hz per face width per second); higher lags less "
                         f"in motion, lower jitters less (default {d.beta:g})")
     p.set_defaults(func=run)
+
+
+def model_and_output_arguments(p) -> None:
+    """--model, --kind and --out-dir, as run and fit take them."""
+    p.add_argument("--model", type=Path, help="model file (default: the shipped 3D model)")
+    p.add_argument("--kind", choices=("3d", "2d"), default="3d", help="which shipped model when --model is not given")
+    p.add_argument("--out-dir", type=Path, help="output folder (default: <input>_aamtrack next to the input)")
 
 
 def output_base(input_: str) -> tuple[Path, str]:

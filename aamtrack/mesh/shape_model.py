@@ -119,6 +119,15 @@ class ShapeModel:
         lm = self.landmark_map @ self.mean
         return EYE_CORNERS_MM / float(np.linalg.norm(lm[45] - lm[36]))
 
+    def spreads(self) -> np.ndarray:
+        """(n_q + n_shape,) float64 prior spread of each entry of the search vector [q, sigma]: 1 for the pose and
+        for 2D PCA coefficients (unit = 1 sd), half the range for animation units, ``shape_sd`` for shape units."""
+        out = np.ones(self.n_q + self.n_shape)
+        if self.kind == "3d":
+            out[N_POSE:self.n_q] = 0.5 * (self.coef_hi - self.coef_lo)
+        out[self.n_q:] = self.shape_sd
+        return out
+
     def person_view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The same model with sigma searched too: (basis (n_coef + n_shape, n, 3), free indices, lo, hi) for
         the extended vector q_ext = [q, sigma], the neutral shape being the mean. Sigma is bounded to

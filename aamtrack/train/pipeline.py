@@ -157,16 +157,6 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
     return sm.triangles[centre_y < config.forehead_cut]
 
 
-def coefficient_spreads(sm: ShapeModel) -> np.ndarray:
-    """(n_params,) prior spread of each coefficient and shape unit of the search vector (1 for the pose):
-    1 for 2D PCA coefficients (unit = 1 sd), half the range for animation units, ``shape_sd`` for shape units."""
-    out = np.ones(sm.n_q + sm.n_shape)
-    if sm.kind == "3d":
-        out[N_POSE:sm.n_q] = 0.5 * (sm.coef_hi - sm.coef_lo)
-    out[sm.n_q:] = sm.shape_sd
-    return out
-
-
 class _Fixed:
     """A ``Levels`` stand-in holding one feature image, whatever factor is asked for."""
 
@@ -209,7 +199,7 @@ def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, 
     mode = config.feature_spec.mode
     couples = []
     Pc = starts
-    spread = coefficient_spreads(sm)
+    spread = sm.spreads()
     width = sm.frontal_width()
     for k, (face_px, _) in enumerate(config.couples):
         if k >= 1:
@@ -247,7 +237,7 @@ def _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress)
     mean3d = np.ascontiguousarray(sm.mean)
     width = sm.frontal_width()
     mode = config.feature_spec.mode
-    steps_all = perturbation_steps(sm, person=True)
+    steps_all = perturbation_steps(sm)
     grads = [np.zeros((len(t.mean), len(free_all))) for t in textures]
     for i in progress(range(len(gray)), desc="update matrices", unit="img"):
         lv = Octaves(gray[i], config.feature_spec)
@@ -352,7 +342,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     rng = np.random.default_rng(config.seed)
     record = []
     owner_group = np.arange(len(gray)) % n_orig  # an image and its mirror stay on one side of a hold-out split
-    starts, owner = perturbed_starts(P, free_all, det_deltas, coefficient_spreads(sm), width, lo, hi,
+    starts, owner = perturbed_starts(P, free_all, det_deltas, sm.spreads(), width, lo, hi,
                                      n_per=config.n_starts, rng=rng)
     if config.update == "cascade":
         couples, Pfinal, owner = _cascade_couples(feats, factors, P, pts, owner_group, starts, owner, sm, textures,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh.shape_model import ShapeModel
+from ..mesh.shape_model import N_POSE, ShapeModel
 
 # Perturbation magnitudes (one sign; both are used). Translation in units of the face width, angles in
 # radians, scale as log-scale, coefficients as a share of half their range.
@@ -18,12 +18,12 @@ COEF_STEPS = (0.1, 0.25, 0.5)
 SHAPE_STEPS = (0.25, 0.5, 1.0)  # shape units, in prior spreads
 
 
-def perturbation_steps(sm: ShapeModel, *, person: bool = False) -> np.ndarray:
-    """(n_free, 6) float64 signed perturbations of each free parameter (with ``person``, of the extended
-    vector [q, sigma] of ``ShapeModel.person_view``)."""
+def perturbation_steps(sm: ShapeModel) -> np.ndarray:
+    """(n_free, 6) float64 signed perturbations of each free parameter of the search vector [q, sigma]
+    (``ShapeModel.person_view``)."""
     width = sm.frontal_width()
     rows = []
-    free = sm.person_view()[1] if person else sm.free
+    free = sm.person_view()[1]
     for j in free:
         if j >= sm.n_q:
             sd = sm.shape_sd[j - sm.n_q]
@@ -58,18 +58,6 @@ def update_matrix(G: np.ndarray, prior: np.ndarray | None = None) -> tuple[np.nd
 
 def prior_weights(sm: ShapeModel, free: np.ndarray, n_pixels: int, strength: float) -> np.ndarray:
     """(n_free,) prior weights: ``strength * n_pixels / sd^2`` on each coefficient, 0 on the pose, so a
-    coefficient one prior spread from 0 costs ``strength`` in mean squared residual. Spreads: 1 for 2D PCA
-    coefficients (unit = 1 sd), half the range for animation units, ``shape_sd`` for the shape units."""
-    w = np.zeros(len(free))
-    for a, j in enumerate(free):
-        if j < 6:
-            continue
-        if j >= sm.n_q:
-            sd = sm.shape_sd[j - sm.n_q]
-        elif sm.kind == "2d":
-            sd = 1.0
-        else:
-            k = j - 6
-            sd = 0.5 * (sm.coef_hi[k] - sm.coef_lo[k])
-        w[a] = strength * n_pixels / sd ** 2
-    return w
+    coefficient one prior spread from 0 costs ``strength`` in mean squared residual (``ShapeModel.spreads``)."""
+    free = np.asarray(free)
+    return np.where(free < N_POSE, 0.0, strength * n_pixels / sm.spreads()[free] ** 2)

@@ -13,8 +13,8 @@ pixel scale. (With dyadic octaves for tracking too, a 240-pixel face and a 120-p
 at scales 2x apart, and cap12 upscaled to 640x480 lost 5 frames, 40 above NME 0.10; now none.) Training learns
 each couple on dyadic octaves instead (``aamtrack.train.octaves``), which measured better.
 
-``cv2.resize`` maps a source coordinate x to ``r * x + (0.5 * r - 0.5)``; the search folds the constant into the
-translation (``level_offset``) so the kernels keep the plain ``scale * x`` of their convention.
+``cv2.resize`` maps a source coordinate x to ``r * x + (0.5 * r - 0.5)``: the kernels sample a level at
+``scale * x + shift`` and take ``shift = level_shift(r)``.
 """
 
 from __future__ import annotations
@@ -87,9 +87,9 @@ def level_factor(face_px: float, couple_face_px: float) -> float:
     return float(couple_face_px / face_px)
 
 
-def level_offset(r: float) -> float:
-    """Translation (source pixels) to add to q before a search at factor r: r * (x + d) = r * x + 0.5 r - 0.5."""
-    return 0.5 - 0.5 / r
+def level_shift(r: float) -> float:
+    """Where frame pixel 0 lands in a level resampled by r (``Levels``, cv2.resize): x -> r * x + level_shift(r)."""
+    return 0.5 * r - 0.5
 
 
 def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from ._kernels.warp import _cascade, _project, _residual, _search
-from .imaging import Levels, level_factor, level_offset
+from .imaging import Levels, level_factor, level_shift
+from .kernels import cascade, project, residual, search
 from .mesh.shape_model import N_POSE
 from .model import Model
 from .result import FitResult
@@ -72,25 +72,19 @@ class Searcher:
         return lo, hi
 
     def _couple_run(self, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi) -> int:
-        """One couple on p (in place, shifted for the resampling's half pixel inside). Returns iterations."""
+        """One couple on p (in place) on the level ``img`` resampled by r. Returns iterations."""
         c = self.model.couples[k]
         t = self.model.textures[c.texture]
-        d = level_offset(r)
-        lo_d, hi_d = lo.copy(), hi.copy()
-        p[4:6] += d
-        lo_d[4:6] += d
-        hi_d[4:6] += d
+        shift = level_shift(r)
         if c.n_stages:
             verts, tex, coef, e, delta = self._scratch[len(t.mean)]
-            _cascade(img, r, self.shape3d, self.basis, p, c.free, lo_d, hi_d, c.cascade, c.cascade_bias, t.mean,
-                     t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:t.appearance.shape[1]],
-                     e, delta[:len(c.free)])
-            n_it = c.n_stages
-        else:
-            n_it, _ = _search(img, r, self.shape3d, self.basis, p, c.free, lo_d, hi_d, c.update_matrix, c.prior_step,
-                              c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, MAX_ITER,
-                              TOL, N_STEPS, self._delta_tol[k])
-        p[4:6] -= d
+            cascade(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, c.cascade, c.cascade_bias, t.mean,
+                    t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex,
+                    coef[:t.appearance.shape[1]], e, delta[:len(c.free)])
+            return c.n_stages
+        n_it, _ = search(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, c.update_matrix, c.prior_step,
+                         c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, MAX_ITER, TOL,
+                         N_STEPS, self._delta_tol[k])
         return int(n_it)
 
     def fit(self, levels: Levels, p0: np.ndarray, shape_params: np.ndarray | None = None, *,
@@ -112,9 +106,7 @@ class Searcher:
 
     def project(self, p: np.ndarray) -> np.ndarray:
         """(n_vertices, 2) image pixels of the search vector p."""
-        out = np.empty((self.model.shape.n_vertices, 2))
-        _project(self.shape3d, self.basis, np.ascontiguousarray(p, dtype=np.float64), out)
-        return out
+        return project(self.shape3d, self.basis, p, np.empty((self.model.shape.n_vertices, 2)))
 
     def statistics(self, levels: Levels, p: np.ndarray, r: float | None = None) -> tuple:
         """The fit statistics the validator reads (``STAT_NAMES``), on the finest couple at p: RMS projected
@@ -126,11 +118,9 @@ class Searcher:
         t = self.model.textures[c.texture]
         r = level_factor(p[3] * self.width, c.face_px) if r is None else r
         verts, tex, coef, e, _ = self._scratch[len(t.mean)]
-        q = np.array(p, np.float64)
-        q[4:6] += level_offset(r)
         m = t.appearance.shape[1]
-        err = _residual(levels.get(r), r, self.shape3d, self.basis, q, t.mean, t.appearance, t.frame.pix_vid,
-                        t.frame.pix_bary, self.mode, verts, tex, coef[:m], e)
+        err = residual(levels.get(r), r, level_shift(r), self.shape3d, self.basis, p, t.mean, t.appearance,
+                       t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:m], e)
         tn = float(np.linalg.norm(tex))
         corr = float(np.dot(tex, t.mean) / (tn * float(np.linalg.norm(t.mean)))) if tn > 1e-9 else 0.0
         energy = tn / math.sqrt(len(tex))

@@ -12,8 +12,9 @@ Conventions shared by every kernel (and documented once here):
   face's own frame, so one learned update matrix serves every position, size and roll of the face: angles
   and coefficients add, the scale multiplies by ``exp(delta)``, and the translation moves by ``delta`` model
   units along the face's (rolled) axes. Training perturbs with the same ``_compose`` the search applies.
-- An image resampled by a factor ``scale`` is sampled at ``scale * x`` (the caller shifts the translation for
-  cv2.resize's half-pixel convention, see ``aamtrack.imaging``).
+- An image resampled by a factor ``scale`` is sampled at ``scale * x + shift``: frame pixel x maps to that
+  pixel of the resampled image (``shift`` = 0.5 scale - 0.5 for cv2.resize's half-pixel convention, 0 for
+  cv2.pyrDown octaves; see ``aamtrack.imaging.level_shift``).
 """
 
 from __future__ import annotations
@@ -70,12 +71,12 @@ def _project(shape3d, basis, q, out):
 
 
 @numba.njit(**NJIT)
-def _warp(image, verts, scale, pix_vid, pix_bary, out):
+def _warp(image, verts, scale, shift, pix_vid, pix_bary, out):
     """Piecewise-affine warp with bilinear sampling: texture pixel p of channel ch takes the value of image
-    channel ch at ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]]``.
+    channel ch at ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]] + shift``.
 
-    image (C, H, W) float32 (H, W >= 2); verts (n, 2) float64 frame pixels; scale = the image's resampling
-    factor; pix_vid (N, 3) int32; pix_bary (N, 3) float32; out (C * N,) float32, channel-major
+    image (C, H, W) float32 (H, W >= 2); verts (n, 2) float64 frame pixels; scale, shift = the image's resampling
+    (``aamtrack.imaging.level_shift``); pix_vid (N, 3) int32; pix_bary (N, 3) float32; out (C * N,) float32, channel-major
     (``out[ch * N + p]``). Samples outside the image take the nearest border value.
     Returns the number of texture pixels whose sample fell outside the image.
     """
@@ -85,8 +86,8 @@ def _warp(image, verts, scale, pix_vid, pix_bary, out):
     for p in range(N):
         a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
         wa, wb, wc = pix_bary[p, 0], pix_bary[p, 1], pix_bary[p, 2]
-        x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0])
-        y = scale * (wa * verts[a, 1] + wb * verts[b, 1] + wc * verts[c, 1])
+        x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0]) + shift
+        y = scale * (wa * verts[a, 1] + wb * verts[b, 1] + wc * verts[c, 1]) + shift
         if x < 0.0 or y < 0.0 or x > W - 1 or y > H - 1:
             n_out += 1
             x = min(max(x, 0.0), W - 1.0)
@@ -138,21 +139,21 @@ def _finish_texture(tex, n_pixels, mode, rz):
 
 
 @numba.njit(**NJIT)
-def _texture(image, scale, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex):
+def _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex):
     """tex (C * N,) float32 <- the finished texture of image (C, H, W) under q (see ``_warp``,
     ``_finish_texture``). Scratch: verts (n, 2) float64."""
     _project(shape3d, basis, q, verts)
-    _warp(image, verts, scale, pix_vid, pix_bary, tex)
+    _warp(image, verts, scale, shift, pix_vid, pix_bary, tex)
     _finish_texture(tex, pix_vid.shape[0], mode, q[2])
 
 
 @numba.njit(**NJIT)
-def _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e):
+def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e):
     """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
     basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D.
     Scratch: verts (n, 2) float64, tex (D,) float32, coef (m,) float64.
     """
-    _texture(image, scale, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex)
+    _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex)
     D = tex.shape[0]
     m = app.shape[1]
     for p in range(D):
@@ -209,7 +210,7 @@ def _prior_cost(q, free, prior):
 
 
 @numba.njit(**NJIT)
-def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
+def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
             mode, max_iter, tol, n_steps, delta_tol):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
     1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does,
@@ -231,7 +232,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
     e_try = np.empty(N)
     q_try = np.empty_like(q)
     delta = np.empty(free.shape[0])
-    err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+    err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
     err += _prior_cost(q, free, prior) / N
     it = 0
     while it < max_iter:
@@ -255,7 +256,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
         err_try = err
         for _ in range(n_steps):
             _compose(q, free, delta, step, lo, hi, q_try)
-            err_try = _residual(image, scale, shape3d, basis, q_try, mean, app, pix_vid, pix_bary, mode,
+            err_try = _residual(image, scale, shift, shape3d, basis, q_try, mean, app, pix_vid, pix_bary, mode,
                                 verts, tex, coef, e_try) + _prior_cost(q_try, free, prior) / N
             if err_try < err:
                 accepted = True
@@ -275,7 +276,7 @@ def _search(image, scale, shape3d, basis, q, free, lo, hi, U, prior_step, prior,
 
 
 @numba.njit(**NJIT)
-def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, app, pix_vid, pix_bary, mode,
+def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, mean, app, pix_vid, pix_bary, mode,
                          G, e0):
     """Add to G (N, n_free) the least-squares slopes of the residual along each free parameter of one
     training image: G[:, a] += sum_d d (e(q0 + d e_a) - e(q0)) / sum_d d^2 over the perturbations
@@ -291,7 +292,7 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
     delta = np.zeros(free.shape[0])
     no_lo = np.full(q0.shape[0], -np.inf)
     no_hi = np.full(q0.shape[0], np.inf)
-    _residual(image, scale, shape3d, basis, q0, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e0)
+    _residual(image, scale, shift, shape3d, basis, q0, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e0)
     for a in range(free.shape[0]):
         denom = 0.0
         for k in range(steps.shape[1]):
@@ -301,7 +302,7 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
             d = steps[a, k]
             delta[a] = d
             _compose(q0, free, delta, 1.0, no_lo, no_hi, q)
-            _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+            _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
             for p in range(N):
                 G[p, a] += d * (e[p] - e0[p]) / denom
         delta[a] = 0.0
@@ -309,7 +310,7 @@ def _accumulate_gradient(image, scale, shape3d, basis, q0, free, steps, mean, ap
 
 
 @numba.njit(**NJIT)
-def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid, pix_bary, mode,
+def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid, pix_bary, mode,
              verts, tex, coef, e, delta):
     """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
     delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
@@ -322,7 +323,7 @@ def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix
     q_new = np.empty_like(q)
     err = 0.0
     for s in range(R.shape[0]):
-        err = _residual(image, scale, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
         for a in range(free.shape[0]):
             if lo[free[a]] == hi[free[a]]:  # a pinned parameter (the tracker's held shape units): no row to apply
                 delta[a] = 0.0
@@ -338,7 +339,7 @@ def _cascade(image, scale, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix
 
 
 @numba.njit(**NJIT)
-def _residual_batch(image, scale, shape3d, basis, Q, mean, app, pix_vid, pix_bary, mode, E):
+def _residual_batch(image, scale, shift, shape3d, basis, Q, mean, app, pix_vid, pix_bary, mode, E):
     """E[i] = the projected residual of image at Q[i] (``_residual``), for Q (M, n_q) float64; E (M, D) float32.
     Training's bulk evaluation of many perturbed starts on one image."""
     D = mean.shape[0]
@@ -347,6 +348,6 @@ def _residual_batch(image, scale, shape3d, basis, Q, mean, app, pix_vid, pix_bar
     coef = np.empty(app.shape[1])
     e = np.empty(D)
     for i in range(Q.shape[0]):
-        _residual(image, scale, shape3d, basis, Q[i], mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        _residual(image, scale, shift, shape3d, basis, Q[i], mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
         for p in range(D):
             E[i, p] = e[p]

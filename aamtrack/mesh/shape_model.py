@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._kernels.warp import _project, _rotation
+from ..kernels import project, rotation
 from .landmarks import similarity_fit
 
 POSE_NAMES = ("rx", "ry", "rz", "scale", "tx", "ty")
@@ -99,10 +99,7 @@ class ShapeModel:
 
     def project(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
         """(n_vertices, 2) float64 image pixels."""
-        out = np.empty((self.n_vertices, 2))
-        _project(np.ascontiguousarray(self.neutral(shape_params)), np.ascontiguousarray(self.basis),
-                 np.ascontiguousarray(q, dtype=np.float64), out)
-        return out
+        return project(self.neutral(shape_params), self.basis, q, np.empty((self.n_vertices, 2)))
 
     def landmarks(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
         """(68, 2) float64 iBUG-68 landmarks in image pixels."""
@@ -156,7 +153,5 @@ def initial_pose(sm: ShapeModel, points: np.ndarray, shape_params=None) -> np.nd
 
 
 def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
-    """(3, 3) float64 R = Rz @ Ry @ Rx, the model's rotation (the kernels' own ``_rotation``)."""
-    R = np.empty((3, 3))
-    _rotation(float(rx), float(ry), float(rz), R)
-    return R
+    """(3, 3) float64 R = Rz @ Ry @ Rx, the model's rotation (the kernels' own)."""
+    return rotation(rx, ry, rz)

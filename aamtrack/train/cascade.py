@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._kernels.warp import _compose, _residual_batch
+from ..kernels import compose, residual_batch
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +51,7 @@ def compose_all(q: np.ndarray, free: np.ndarray, delta: np.ndarray, lo: np.ndarr
     """(M, n) each row of q composed with its delta (M, n_free) by the kernel's own ``_compose``."""
     out = np.empty_like(q)
     for i in range(len(q)):
-        _compose(q[i], free, delta[i], 1.0, lo, hi, out[i])
+        compose(q[i], free, delta[i], 1.0, lo, hi, out[i])
     return out
 
 
@@ -140,12 +140,12 @@ def ridge_fit(X: np.ndarray, Y: np.ndarray, *, alphas=(0.03, 0.3, 3.0, 30.0, 300
     return R.astype(np.float32), b, best
 
 
-def residual_matrix(images, factors, offsets, starts: np.ndarray, owner: np.ndarray, shape3d: np.ndarray,
+def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarray, shape3d: np.ndarray,
                     basis: np.ndarray, mean: np.ndarray, app: np.ndarray, pix_vid: np.ndarray,
                     pix_bary: np.ndarray, mode: int) -> np.ndarray:
     """(M, D) float32 projected residuals of every start (rows of ``starts``) on its own image: ``images[i]`` a
-    feature image (C, h, w), resampled by ``factors[i]`` with the half-pixel shift ``offsets[i]`` folded into
-    the translation (``aamtrack.imaging.level_offset``)."""
+    feature image (C, h, w) resampled by ``factors[i]``, frame pixel x at ``factors[i] * x + shifts[i]``
+    (``aamtrack.imaging.level_shift``)."""
     E = np.empty((len(starts), len(mean)), np.float32)
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.arange(len(images) + 1))
@@ -153,10 +153,7 @@ def residual_matrix(images, factors, offsets, starts: np.ndarray, owner: np.ndar
         rows = order[bounds[i]:bounds[i + 1]]
         if len(rows) == 0:
             continue
-        Q = starts[rows].copy()
-        Q[:, 4:6] += offsets[i]
         out = np.empty((len(rows), len(mean)), np.float32)
-        _residual_batch(images[i], factors[i], shape3d, basis, np.ascontiguousarray(Q), mean, app, pix_vid,
-                        pix_bary, mode, out)
-        E[rows] = out
+        E[rows] = residual_batch(images[i], factors[i], shifts[i], shape3d, basis, starts[rows], mean, app,
+                                 pix_vid, pix_bary, mode, out)
     return E

@@ -13,9 +13,9 @@ from typing import Callable, Iterable
 import cv2
 import numpy as np
 
-from .._kernels.warp import _accumulate_gradient, _project
 from ..detector import guess_points
-from ..imaging import Features, Levels, level_factor, level_offset, to_gray32
+from ..imaging import Features, Levels, level_factor, level_shift, to_gray32
+from ..kernels import accumulate_gradient, project
 from ..mesh.candide import Candide
 from ..mesh.candide_model import candide_shape_model
 from ..mesh.corrective import with_corrective_units
@@ -173,7 +173,7 @@ def _landmarks(sm: ShapeModel, basis: np.ndarray, P: np.ndarray) -> np.ndarray:
     verts = np.empty((sm.n_vertices, 2))
     mean = np.ascontiguousarray(sm.mean)
     for i, p in enumerate(P):
-        _project(mean, basis, np.ascontiguousarray(p), verts)
+        project(mean, basis, p, verts)
         out[i] = sm.landmark_map @ verts
     return out
 
@@ -212,7 +212,7 @@ def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, 
         n0 = len(starts)
         err_before = float(np.median(nme(_landmarks(sm, basis, Pc[:n0]), points[owner[:n0]])))
         for s in progress(range(config.n_stages), desc=f"cascade couple {k + 1}", unit="stage"):
-            E = residual_matrix(feats[k], factors[k], [level_offset(r) for r in factors[k]], Pc, owner, mean3d,
+            E = residual_matrix(feats[k], factors[k], [level_shift(r) for r in factors[k]], Pc, owner, mean3d,
                                 basis, t.mean, t.appearance, frames[k].pix_vid, frames[k].pix_bary, mode)
             Y = inverse_compose(Pc, P[owner], free)
             R, b, alpha = ridge_fit(E, Y, groups=owner_group[owner], rng=np.random.default_rng(config.seed + k))
@@ -244,9 +244,8 @@ def _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress)
         for k, (face_px, _) in enumerate(config.couples):
             r = octave_factor(P[i, 3] * width, face_px)
             e0 = np.empty(len(textures[k].mean))
-            _accumulate_gradient(lv.get(r), r, mean3d, basis, np.ascontiguousarray(P[i]), free_all, steps_all,
-                                 textures[k].mean, textures[k].appearance, frames[k].pix_vid, frames[k].pix_bary,
-                                 mode, grads[k], e0)
+            accumulate_gradient(lv.get(r), r, 0.0, mean3d, basis, P[i], free_all, steps_all, textures[k].mean,
+                                textures[k].appearance, frames[k].pix_vid, frames[k].pix_bary, mode, grads[k], e0)
     couples = []
     for k, (face_px, _) in enumerate(config.couples):
         cols = np.flatnonzero(free_all < N_POSE) if k < config.pose_only_couples else np.arange(len(free_all))
@@ -331,9 +330,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         for k in range(len(config.couples)):
             r = factors[k][i]
             feats[k][i] = lv.get(r)
-            p = P[i].copy()
-            p[4:6] += level_offset(r)
-            tex[k].append(sample_texture(feats[k][i], r, mean3d, basis, p, frames[k], features.mode))
+            tex[k].append(sample_texture(feats[k][i], r, level_shift(r), mean3d, basis, P[i], frames[k],
+                                         features.mode))
     textures = [Texture(f, *learn_appearance(np.array(t), n_modes=config.n_appearance, mode=features.mode))
                 for f, t in zip(frames, tex)]
     del tex

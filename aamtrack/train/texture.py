@@ -11,18 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._kernels.warp import _normalize, _texture
+from ..kernels import normalize, texture
 from ..mesh.texture_map import TextureFrame
 
 
-def sample_texture(image: np.ndarray, scale: float, shape3d: np.ndarray, basis: np.ndarray, p: np.ndarray,
-                   frame: TextureFrame, mode: int) -> np.ndarray:
-    """(C * N,) float32 finished texture of a feature image (C, H, W) float32 under the search vector p."""
-    verts = np.empty((len(shape3d), 2))
+def sample_texture(image: np.ndarray, scale: float, shift: float, shape3d: np.ndarray, basis: np.ndarray,
+                   p: np.ndarray, frame: TextureFrame, mode: int) -> np.ndarray:
+    """(C * N,) float32 finished texture of a feature image (C, H, W) float32, resampled by (scale, shift), under
+    the search vector p."""
     tex = np.empty(image.shape[0] * frame.n_pixels, dtype=np.float32)
-    _texture(image, scale, shape3d, basis, np.ascontiguousarray(p, np.float64), frame.pix_vid, frame.pix_bary,
-             mode, verts, tex)
-    return tex
+    return texture(image, scale, shift, shape3d, basis, p, frame.pix_vid, frame.pix_bary, mode,
+                   np.empty((len(shape3d), 2)), tex)
 
 
 def learn_appearance(textures: np.ndarray, *, n_modes: int, mode: int) -> tuple[np.ndarray, np.ndarray]:
@@ -30,7 +29,7 @@ def learn_appearance(textures: np.ndarray, *, n_modes: int, mode: int) -> tuple[
     float32, orthonormal, from (n_images, D) finished textures."""
     mean = textures.mean(0).astype(np.float32)
     if mode == 0:
-        _normalize(mean)
+        normalize(mean)
     if n_modes == 0:
         return mean, np.zeros((len(mean), 0), np.float32)
     _, _, Vt = np.linalg.svd(textures - mean, full_matrices=False)

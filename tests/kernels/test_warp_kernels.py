@@ -33,9 +33,9 @@ def test_warp_matches_map_coordinates():
     bary = rng.dirichlet([1, 1, 1], 500).astype(np.float32)
     out = np.empty(1000, np.float32)
     image2 = np.stack([image, 255 - 2 * image])  # two channels, sampled at the same positions
-    for scale in (1.0, 0.5):
-        _warp(image2, verts, scale, vid, bary, out)
-        pos = scale * np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
+    for scale, shift in ((1.0, 0.0), (0.5, 0.0), (0.5, -0.25)):
+        _warp(image2, verts, scale, shift, vid, bary, out)
+        pos = scale * np.einsum("pk,pkd->pd", bary.astype(float), verts[vid]) + shift
         for ch in range(2):
             ref = map_coordinates(image2[ch].astype(float), [pos[:, 1], pos[:, 0]], order=1)
             assert np.abs(out[ch * 500:(ch + 1) * 500] - ref).max() < 1e-3  # bilinear, float32, channel-major
@@ -47,7 +47,7 @@ def test_warp_clamps_outside_samples():
     vid = np.array([[0, 0, 0], [1, 1, 1]], np.int32)
     bary = np.array([[1, 0, 0], [1, 0, 0]], np.float32)
     out = np.empty(2, np.float32)
-    assert _warp(image[None], verts, 1.0, vid, bary, out) == 2
+    assert _warp(image[None], verts, 1.0, 0.0, vid, bary, out) == 2
     assert out.tolist() == [0.0, 11.0]  # nearest corners
 
 
@@ -148,12 +148,12 @@ def test_residual_matches_reference(mode, n_ch):
     mean = rng.normal(0, 1, D).astype(np.float32)
     app = np.linalg.qr(rng.normal(0, 1, (D, 3)))[0].astype(np.float32)
     e = np.empty(D)
-    err = _residual(image, 1.0, shape3d, basis, q, mean, app, vid, bary, mode, np.empty((4, 2)),
+    err = _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, np.empty((4, 2)),
                     np.empty(D, np.float32), np.empty(3), e)
     e_ref, err_ref = _slow_residual(image, shape3d, basis, q, mean.astype(float), app.astype(float), vid, bary, mode)
     assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
     E = np.empty((2, D), np.float32)
-    _residual_batch(image, 1.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
+    _residual_batch(image, 1.0, 0.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
     assert np.abs(E - e_ref).max() < 1e-4  # the batch is the same residual, row by row
 
 
@@ -184,7 +184,7 @@ def test_cascade_applies_each_stage_once():
     b = np.array([[0.1, 0.0, 0.05], [0.0, -0.2, 0.05], [0.1, 0.1, 0.0]])
     p = q.copy()
     lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
-    _cascade(image, 1.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32),
+    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32),
              np.zeros((D, 0), np.float32), vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0),
              np.empty(D), np.empty(3))
     ref = q.copy()
@@ -206,20 +206,20 @@ def test_search_reaches_a_known_minimum():
     e = np.empty(D)
     no_app = np.zeros((D, 0), np.float32)
     args = (np.empty((4, 2)), tex, np.empty(0), e)
-    _residual(image, 1.0, shape3d, basis, q, np.zeros(D, np.float32), no_app, vid, bary, 0, *args)
+    _residual(image, 1.0, 0.0, shape3d, basis, q, np.zeros(D, np.float32), no_app, vid, bary, 0, *args)
     mean = tex.copy()
     free = np.array([4, 5])
     G = np.empty((D, 2))
     for a in range(len(free)):
         qp = q.copy()
         _compose(q, free, np.eye(2)[a] * 0.01, 1.0, np.full(7, -np.inf), np.full(7, np.inf), qp)
-        _residual(image, 1.0, shape3d, basis, qp, mean, no_app, vid, bary, 0, *args)
+        _residual(image, 1.0, 0.0, shape3d, basis, qp, mean, no_app, vid, bary, 0, *args)
         G[:, a] = e / 0.01
     U = (-np.linalg.pinv(G)).astype(np.float32)
     start = q.copy()
     start[4] += 0.6  # pixels
     lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
-    _search(image, 1.0, shape3d, basis, start, free, lo, hi, U, np.zeros((2, 2)), np.zeros(2), mean, no_app, vid,
+    _search(image, 1.0, 0.0, shape3d, basis, start, free, lo, hi, U, np.zeros((2, 2)), np.zeros(2), mean, no_app, vid,
             bary, 0, 30, 1e-6, 4, np.full(2, 1e-6))
     assert np.abs(start[4:6] - q[4:6]).max() < 0.05  # back to the true translation within 1/20 pixel
 
@@ -234,7 +234,7 @@ def test_cascade_leaves_pinned_parameters():
     lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
     lo[6] = hi[6] = q[6]  # the coefficient is held
     p = q.copy()
-    _cascade(image, 1.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32), np.zeros((D, 0), np.float32),
+    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32), np.zeros((D, 0), np.float32),
              vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D), np.empty(3))
     assert p[6] == q[6] and not np.allclose(p[4:6], q[4:6])  # held stays, the rest moved
 
@@ -252,17 +252,17 @@ def test_accumulate_gradient_matches_a_loop_of_residuals():
     steps = np.array([[0.02, -0.02, 0.05, -0.05], [0.1, -0.1, 0.3, -0.3], [0.05, -0.05, 0.2, -0.2]])
     G = np.zeros((D, 3))
     e0 = np.empty(D)
-    _accumulate_gradient(image, 1.0, shape3d, basis, q, free, steps, mean, app, vid, bary, 1, G, e0)
+    _accumulate_gradient(image, 1.0, 0.0, shape3d, basis, q, free, steps, mean, app, vid, bary, 1, G, e0)
     scratch = (np.empty((4, 2)), np.empty(D, np.float32), np.empty(2))
     base = np.empty(D)
-    _residual(image, 1.0, shape3d, basis, q, mean, app, vid, bary, 1, *scratch, base)
+    _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, 1, *scratch, base)
     inf = np.full(7, np.inf)
     for a in range(3):
         ref = np.zeros(D)
         for d in steps[a]:
             qd, e = np.empty(7), np.empty(D)
             _compose(q, free, np.eye(3)[a] * d, 1.0, -inf, inf, qd)
-            _residual(image, 1.0, shape3d, basis, qd, mean, app, vid, bary, 1, *scratch, e)
+            _residual(image, 1.0, 0.0, shape3d, basis, qd, mean, app, vid, bary, 1, *scratch, e)
             ref += d * (e - base) / (steps[a] ** 2).sum()
         assert np.abs(G[:, a] - ref).max() < 1e-9
     assert np.abs(e0 - base).max() < 1e-12
@@ -270,11 +270,12 @@ def test_accumulate_gradient_matches_a_loop_of_residuals():
 
 @pytest.mark.parametrize("r", [0.5, 0.3, 0.17])
 def test_levels_half_pixel_mapping(r):
-    """A level resampled by r (halvings, then one resize) holds the source at x = (x' + 0.5) / r - 0.5, the mapping
-    ``imaging.level_offset`` folds into the translation. On a linear ramp away from the border: exact at r = 0.5
-    (measured 0), within a tenth of a level pixel at other ratios (INTER_AREA's weights at non-integer ratios;
-    measured 0.05 at r = 0.3, 0.08 at r = 0.17)."""
-    from aamtrack.imaging import Features, Levels, level_offset
+    """A level resampled by r (halvings, then one resize) holds the source at x = (x' + 0.5) / r - 0.5, i.e. frame
+    pixel x at x' = r x + ``imaging.level_shift(r)``, and the warp sampling the level at (r, level_shift(r)) reads
+    the frame at x. On a linear ramp away from the border: exact at r = 0.5 (measured 0), within a tenth of a
+    level pixel at other ratios (INTER_AREA's weights at non-integer ratios; measured 0.05 at r = 0.3, 0.08 at
+    r = 0.17)."""
+    from aamtrack.imaging import Features, Levels, level_shift
 
     yy, xx = np.mgrid[0:240, 0:320].astype(np.float32)
     ramp = 0.3 * xx + 0.7 * yy + 10.0
@@ -286,5 +287,12 @@ def test_levels_half_pixel_mapping(r):
     grey_err = np.abs(level[3:h - 3, 3:w - 3] - (0.3 * src_x + 0.7 * src_y + 10.0)).max()
     level_px = grey_err / np.hypot(0.3, 0.7) * r  # the ramp's grey error as a position error in level pixels
     assert level_px < (1e-3 if r == 0.5 else 0.1)
-    # the kernels sample a level at r * x: the search shifts x by level_offset(r) so that r * (x + d) = r x + r/2 - 1/2
-    assert r * level_offset(r) == pytest.approx(0.5 * r - 0.5)
+    # the warp at (r, level_shift(r)) reads the frame's own values at frame pixels, through the level
+    rng = np.random.default_rng(SEED)
+    verts = rng.uniform(40, 200, (50, 2))
+    vid = np.repeat(np.arange(50, dtype=np.int32)[:, None], 3, 1)
+    bary = np.tile(np.array([1, 0, 0], np.float32), (50, 1))
+    out = np.empty(50, np.float32)
+    _warp(level[None], verts, r, level_shift(r), vid, bary, out)
+    truth = 0.3 * verts[:, 0] + 0.7 * verts[:, 1] + 10.0
+    assert np.abs(out - truth).max() / np.hypot(0.3, 0.7) < (1e-3 if r == 0.5 else 0.1) / r  # in frame pixels

@@ -1,0 +1,131 @@
+"""Checked entry points to the compiled warp and search kernels (``aamtrack._kernels.warp``, whose docstring
+states the conventions: parameter vector, axes, resampling ``scale * x + shift``).
+
+A numba kernel compiles one specialisation per argument type: a float64 update matrix or a strided array passed
+where a C-contiguous float32 one is expected would silently compile another version (seconds, once per process)
+and run it. The rest of the package calls the kernels only through these wrappers: arrays the kernel only reads
+are cast to the expected dtype and layout (no copy when they already are, so the hot path pays a few
+microseconds per call); arrays it writes into (the search vector, outputs, scratch) must already be right, else
+``TypeError`` naming the argument -- a cast copy would swallow the result.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._kernels import warp as _k
+
+F32, F64, I32, I64 = np.float32, np.float64, np.int32, np.int64
+
+
+def _in(a, dtype, ndim: int, name: str) -> np.ndarray:
+    """A read-only argument, cast to a C-contiguous ``dtype`` array of ``ndim`` dimensions."""
+    a = np.ascontiguousarray(a, dtype=dtype)
+    if a.ndim != ndim:
+        raise ValueError(f"{name}: a {ndim}-d array expected, got shape {a.shape}")
+    return a
+
+
+def _out(a, dtype, ndim: int, name: str) -> np.ndarray:
+    """An argument the kernel writes into: it must already be a writable C-contiguous ``dtype`` array."""
+    if (not isinstance(a, np.ndarray) or a.dtype != dtype or a.ndim != ndim or not a.flags.c_contiguous
+            or not a.flags.writeable):
+        got = f"{a.dtype} {a.ndim}-d{'' if a.flags.c_contiguous else ' strided'}" if isinstance(a, np.ndarray) \
+            else type(a).__name__
+        raise TypeError(f"{name}: a writable C-contiguous {ndim}-d {np.dtype(dtype).name} array expected, got {got}")
+    return a
+
+
+def _model(shape3d, basis, pix_vid, pix_bary):
+    return (_in(shape3d, F64, 2, "shape3d"), _in(basis, F64, 3, "basis"), _in(pix_vid, I32, 2, "pix_vid"),
+            _in(pix_bary, F32, 2, "pix_bary"))
+
+
+def rotation(rx: float, ry: float, rz: float) -> np.ndarray:
+    """(3, 3) float64 R = Rz @ Ry @ Rx."""
+    R = np.empty((3, 3))
+    _k._rotation(float(rx), float(ry), float(rz), R)
+    return R
+
+
+def project(shape3d, basis, q, out) -> np.ndarray:
+    """out (n, 2) float64 <- the vertices of q in frame pixels. Returns out."""
+    _k._project(_in(shape3d, F64, 2, "shape3d"), _in(basis, F64, 3, "basis"), _in(q, F64, 1, "q"),
+                _out(out, F64, 2, "out"))
+    return out
+
+
+def normalize(tex) -> None:
+    """In place: zero mean, unit standard deviation of tex (N,) float32."""
+    _k._normalize(_out(tex, F32, 1, "tex"))
+
+
+def compose(q, free, delta, step: float, lo, hi, out) -> np.ndarray:
+    """out <- q updated by step * delta in the face's frame, clipped to [lo, hi]. Returns out."""
+    _k._compose(_in(q, F64, 1, "q"), _in(free, I64, 1, "free"), _in(delta, F64, 1, "delta"), float(step),
+                _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"), _out(out, F64, 1, "out"))
+    return out
+
+
+def texture(image, scale: float, shift: float, shape3d, basis, q, pix_vid, pix_bary, mode: int, verts, tex):
+    """tex (C * N,) float32 <- the finished texture of the feature image (C, H, W) under q."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    _k._texture(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _in(q, F64, 1, "q"),
+                pix_vid, pix_bary, int(mode), _out(verts, F64, 2, "verts"), _out(tex, F32, 1, "tex"))
+    return tex
+
+
+def residual(image, scale: float, shift: float, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode: int,
+             verts, tex, coef, e) -> float:
+    """e (D,) float64 <- the projected residual at q; returns |e|^2 / D. verts, tex, coef: scratch."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    return _k._residual(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _in(q, F64, 1, "q"),
+                        _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode),
+                        _out(verts, F64, 2, "verts"), _out(tex, F32, 1, "tex"), _out(coef, F64, 1, "coef"),
+                        _out(e, F64, 1, "e"))
+
+
+def residual_batch(image, scale: float, shift: float, shape3d, basis, Q, mean, app, pix_vid, pix_bary,
+                   mode: int, E) -> np.ndarray:
+    """E (M, D) float32 <- the projected residual at each row of Q (M, n_q). Returns E."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    _k._residual_batch(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _in(Q, F64, 2, "Q"),
+                       _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode),
+                       _out(E, F32, 2, "E"))
+    return E
+
+
+def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid,
+            pix_bary, mode: int, verts, tex, coef, e, delta) -> float:
+    """The learned update cascade on one couple, q (n_q,) float64 updated in place (``_kernels.warp._cascade``).
+    Returns the last stage's mean squared residual."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    return _k._cascade(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _out(q, F64, 1, "q"),
+                       _in(free, I64, 1, "free"), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"),
+                       _in(R, F32, 3, "cascade"), _in(b, F64, 2, "cascade_bias"), _in(mean, F32, 1, "mean"),
+                       _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode), _out(verts, F64, 2, "verts"),
+                       _out(tex, F32, 1, "tex"), _out(coef, F64, 1, "coef"), _out(e, F64, 1, "e"),
+                       _out(delta, F64, 1, "delta"))
+
+
+def search(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app,
+           pix_vid, pix_bary, mode: int, max_iter: int, tol: float, n_steps: int, delta_tol) -> tuple[int, float]:
+    """The Jacobian active search on one couple, q updated in place (``_kernels.warp._search``).
+    Returns (iterations, final cost)."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    return _k._search(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _out(q, F64, 1, "q"),
+                      _in(free, I64, 1, "free"), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"),
+                      _in(U, F32, 2, "update_matrix"), _in(prior_step, F64, 2, "prior_step"),
+                      _in(prior, F64, 1, "prior"), _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"),
+                      pix_vid, pix_bary, int(mode), int(max_iter), float(tol), int(n_steps),
+                      _in(delta_tol, F64, 1, "delta_tol"))
+
+
+def accumulate_gradient(image, scale: float, shift: float, shape3d, basis, q0, free, steps, mean, app, pix_vid,
+                        pix_bary, mode: int, G, e0) -> None:
+    """G (D, n_free) float64 += one training image's residual slopes; e0 (D,) <- its residual at q0."""
+    shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
+    _k._accumulate_gradient(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis,
+                            _in(q0, F64, 1, "q0"), _in(free, I64, 1, "free"), _in(steps, F64, 2, "steps"),
+                            _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode),
+                            _out(G, F64, 2, "G"), _out(e0, F64, 1, "e0"))

@@ -41,6 +41,20 @@ def synth_model(synth_data):
 
 
 @pytest.fixture(scope="session")
+def synth_model3d():
+    """A 3D model (Candide-like synthetic mesh, ``synth3d``) trained on 30 posed synthetic faces, and the mesh."""
+    import numpy as np
+    import synth3d
+    from aamtrack.train.pipeline import TrainConfig, train_model
+
+    candide = synth3d.synthetic_candide()
+    images, points, _, _ = synth3d.posed_faces(candide, 30, np.random.default_rng(SEED))
+    model, _ = train_model(images, points, "3d", candide=candide,
+                           config=TrainConfig(couples=SYNTH_COUPLES, map_refine_rounds=1, n_corrective=4))
+    return model, candide
+
+
+@pytest.fixture(scope="session")
 def model_file(tmp_path_factory, synth_model):
     """The synthetic 2D model saved as a model file, for the command-line tests."""
     from aamtrack.model import save_model

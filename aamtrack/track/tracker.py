@@ -76,12 +76,9 @@ class Tracker:
         self.roi_vertices = np.unique(np.concatenate([t.frame.pix_vid.ravel() for t in model.textures]))
 
     # -- one image -------------------------------------------------------------------------------------
-    def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0
-                ) -> tuple[FitResult, float]:
-        """Search from each start (n_params,) on one crop of the frame around them all (exact: the model is
-        translation-equivariant), keep the most confident fit. Returns (result in frame coordinates, seconds
-        spent on the crop's feature images)."""
-        t0 = time.perf_counter()
+    def crop(self, image: np.ndarray, starts: list) -> tuple:
+        """One crop of the frame around the faces of all ``starts`` (grown by ``roi_margin``) and its feature
+        levels (built on demand): (levels, (x0, y0) of the crop in the frame)."""
         v = np.concatenate([self.searcher.project(p)[self.roi_vertices] for p in starts])
         lo, hi = v.min(0), v.max(0)
         m = self.config.roi_margin * (hi - lo).max()
@@ -90,12 +87,19 @@ class Tracker:
         x1, y1 = int(min(W, np.ceil(hi[0] + m))), int(min(H, np.ceil(hi[1] + m)))
         if x1 - x0 < 8 or y1 - y0 < 8:
             x0, y0, x1, y1 = 0, 0, W, H
-        levels = self.searcher.levels(to_gray32(image[y0:y1, x0:x1]))  # grey of the crop only
+        return self.searcher.levels(to_gray32(image[y0:y1, x0:x1])), np.array([x0, y0], float)  # grey of the crop
+
+    def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0, crop=None
+                ) -> tuple[FitResult, float]:
+        """Search from each start (n_params,) on one crop of the frame around them all (exact: the model is
+        translation-equivariant), keep the most confident fit; ``crop`` (from ``crop``) reuses a crop and its
+        levels. Returns (result in frame coordinates, seconds spent on the crop's feature images)."""
+        t0 = time.perf_counter()
+        levels, off = self.crop(image, starts) if crop is None else crop
         crop_starts = []
         for p in starts:
             p = np.array(p, float)
-            p[4] -= x0
-            p[5] -= y0
+            p[4:6] -= off
             crop_starts.append(p)
         factors = self.searcher.factors(crop_starts[0])
         for r in sorted(set(factors[first:]), reverse=True):  # now (timed apart from the search), fine to coarse
@@ -108,9 +112,7 @@ class Tracker:
             if best is None or res.confidence > best.confidence:
                 best = res
         p = best.p.copy()
-        p[4] += x0
-        p[5] += y0
-        off = np.array([x0, y0], float)
+        p[4:6] += off
         return replace(best, p=p, landmarks=best.landmarks + off, vertices=best.vertices + off), t_pyr
 
     def detection_starts(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> list:
@@ -210,9 +212,12 @@ class Tracker:
                     start[[2, 4, 5]] += step[[2, 4, 5]]
                 starts, first = [start], cfg.skip_coarse
             t1 = time.perf_counter()
-            res, t_pyr = self.fit_roi(image, starts, shape_params, first=first)
-            if status == "detected" and cfg.refine_detection:
-                res, t_more = self.fit_roi(image, [res.p], shape_params, first=cfg.skip_coarse)
+            crop = self.crop(image, starts)
+            t_crop = time.perf_counter() - t1
+            res, t_pyr = self.fit_roi(image, starts, shape_params, first=first, crop=crop)
+            t_pyr += t_crop
+            if status == "detected" and cfg.refine_detection:  # one more search, on the same crop and levels
+                res, t_more = self.fit_roi(image, [res.p], shape_params, first=cfg.skip_coarse, crop=crop)
                 t_pyr += t_more
             timings["pyramid"] = t_pyr
             timings["search"] = time.perf_counter() - t1 - t_pyr

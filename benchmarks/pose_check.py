@@ -1,4 +1,4 @@
-"""Head pose on synthetic renders of a textured face at known poses (issue 10, item 3).
+"""Head pose on synthetic renders of a textured face at known poses (the 3D model's pose check).
 
 A real face (a helen_train image) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``)
 and the image becomes the mesh's texture at that fit. The textured mesh is then rendered at known poses
@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine_name, write_json  # noqa: E402
 
-TARGET_MEDIAN_DEG = 2.0  # issue 10: median angle error <= 2 degrees over the pose grid
+TARGET_MEDIAN_DEG = 2.0  # goal: median angle error <= 2 degrees over the pose grid
 TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
 YAWS = (-45, -30, -15, 0, 15, 30, 45)
 PITCHES = (-30, -15, 0, 15, 30)

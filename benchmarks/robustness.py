@@ -26,11 +26,11 @@ Scores
     video, per variant and model: share of face frames tracked (``FrameResult.success``), mean NME over the
     tracked face frames against the moved reference, its difference to the clean video's (same model, same
     frames); blank variants also: blank frames reported tracked, and face frames after the gap until the
-    first tracked one. Goal (issue 9): clean: every frame tracked and NME <= 0.035; a variant: tracked >= 95%
+    first tracked one. Goal: clean: every frame tracked and NME <= 0.035; a variant: tracked >= 95%
     of its face frames, NME within 0.01 of clean; blank: also no blank frame tracked and tracking back within
     25 frames (1 s) after the gap.
     stills: share of all images with NME <= 0.08 (not found or rejected counts as a failure), mean NME over the
-    fitted images, difference to the clean mean. Goal: clean: >= 92% and mean <= 0.035 (issue 9's helen_test
+    fitted images, difference to the clean mean. Goal: clean: >= 92% and mean <= 0.035 (the helen_test
     bar); a variant: >= 92% and mean within 0.01 of clean.
 NME = mean point error over the 68 points / outer eye-corner distance of the (moved) reference, so small30's
 errors are measured in units of 30 px: one pixel there is 0.033. Points follow OpenCV's convention (pixel
@@ -42,7 +42,7 @@ Measured with the shipped 3D model (full run): mean x error +0.2 px clean, +1.4 
 clean, +3.4 px mirrored on helen_test (2D: +3.5 px), the same on every group of points (jaw, brows, nose, eyes,
 mouth: +2.8 to +3.8 px, 150 images): a whole-face shift of about 0.02 of the eye distance that a pixel
 convention cannot explain, likely learned from a one-sided training set (helen_test's labelled nose bridge sits
-on average 1.5 px right of the eye-corner midpoint), which mirrored training data (issue 9 item 2) should remove.
+on average 1.5 px right of the eye-corner midpoint), which mirrored training data should remove.
 The clean variant always runs (the differences need it).
 ``--limit N`` takes the first N video frames and the first N stills, for a quick look.
 """
@@ -96,7 +96,7 @@ FILL_GREY = 128
 
 GOAL_TRACKED = 0.95      # share of face frames tracked, every video variant
 GOAL_DELTA = 0.01        # NME above the clean run's, every variant
-GOAL_CLEAN_NME = 0.035   # clean video / clean stills mean NME (issue 9's bars for cap12 and helen_test)
+GOAL_CLEAN_NME = 0.035   # clean video / clean stills mean NME (the bars for cap12 and helen_test)
 GOAL_RESUME = 25         # face frames after a blank gap until tracking is back
 STILL_OK = 0.08          # a still is good at NME <= this
 GOAL_STILLS_SHARE = 0.92  # share of all stills that are good

@@ -20,7 +20,7 @@ lag
 NME
     Mean NME over the tracked frames (68 points, outer eye corners).
 
-``--grid`` also scores a small grid of (min_cutoff, beta) around the defaults. Targets (issue 12): jitter at
+``--grid`` also scores a small grid of (min_cutoff, beta) around the defaults. Targets: jitter at
 most half the unsmoothed figure, lag at most one frame, NME not worse by more than 0.002.
 """
 

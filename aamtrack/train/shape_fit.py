@@ -37,6 +37,68 @@ def _unpack(x, sm: ShapeModel, free_pose, fit_sigma, sigma_fixed):
     return q, sigma
 
 
+def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
+    """(residuals(x), jacobian(x)) of the fit of x = [free pose (log-scale for the scale), coefficients, sigma if
+    ``fit_sigma``] to (68, 2) points (module docstring)."""
+    width = float(np.ptp(points[:, 0]) + 1e-9)
+    LM = sm.landmark_map @ sm.mean
+    LS = np.einsum("lv,kvd->kld", sm.landmark_map, sm.shape_units)
+    LA = np.einsum("lv,kvd->kld", sm.landmark_map, sm.basis)
+    n_p = len(free_pose)
+
+    n_c = sm.n_coef
+
+    def _rot(x):
+        """(q, R = Rz Ry Rx, {axis: dR / d angle})."""
+        q, _ = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
+        (cx, sx), (cy, sy), (cz, sz) = [(np.cos(a), np.sin(a)) for a in q[:3]]
+        Rx, dRx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]), np.array([[0, 0, 0], [0, -sx, -cx], [0, cx, -sx]])
+        Ry, dRy = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]]), np.array([[-sy, 0, cy], [0, 0, 0], [-cy, 0, -sy]])
+        Rz, dRz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]), np.array([[-sz, -cz, 0], [cz, -sz, 0], [0, 0, 0]])
+        dR = {0: Rz @ Ry @ dRx, 1: Rz @ dRy @ Rx, 2: dRz @ Ry @ Rx}
+        return q, Rz @ Ry @ Rx, dR
+
+    def _shape(q, sigma):
+        return LM + np.tensordot(sigma, LS, axes=1) + np.tensordot(q[N_POSE:], LA, axes=1)
+
+    def residuals(x):
+        q, sigma = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
+        _, R, _ = _rot(x)
+        X = _shape(q, sigma)
+        u = q[3] * X @ R[0] + q[4]
+        v = -q[3] * X @ R[1] + q[5]
+        res = [(u - points[:, 0]) / width, (v - points[:, 1]) / width, np.sqrt(LAMBDA_COEF) * q[N_POSE:]]
+        if fit_sigma:
+            res.append(np.sqrt(LAMBDA_SHAPE) * sigma / sm.shape_sd)
+        return np.concatenate(res)
+
+    def jacobian(x):
+        """d residuals / dx, analytic (the numerical one cost a residual evaluation per unknown)."""
+        q, sigma = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
+        _, R, dR = _rot(x)
+        X = _shape(q, sigma)
+        s = q[3] / width
+        n_lm = len(points)
+        J = np.zeros((2 * n_lm + n_c + (sm.n_shape if fit_sigma else 0), len(x)))
+        for a, j in enumerate(free_pose):
+            if j < 3:
+                J[:n_lm, a], J[n_lm:2 * n_lm, a] = s * X @ dR[j][0], -s * X @ dR[j][1]
+            elif j == 3:
+                J[:n_lm, a], J[n_lm:2 * n_lm, a] = s * X @ R[0], -s * X @ R[1]
+            else:
+                J[(j - 4) * n_lm:(j - 3) * n_lm, a] = 1.0 / width
+        cols = [(LA, n_p)] + ([(LS, n_p + n_c)] if fit_sigma else [])
+        for B, c0 in cols:
+            J[:n_lm, c0:c0 + len(B)] = s * (B @ R[0]).T
+            J[n_lm:2 * n_lm, c0:c0 + len(B)] = -s * (B @ R[1]).T
+        J[2 * n_lm:2 * n_lm + n_c, n_p:n_p + n_c] = np.sqrt(LAMBDA_COEF) * np.eye(n_c)
+        if fit_sigma:
+            J[2 * n_lm + n_c:, n_p + n_c:] = np.diag(np.sqrt(LAMBDA_SHAPE) / sm.shape_sd)
+        return J
+
+    return residuals, jacobian
+
+
 def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarray | None = None,
                   fit_sigma: bool = True, q0: np.ndarray | None = None) -> ShapeFit:
     """Fit pose, coefficients and (if ``fit_sigma`` and the model has shape units) sigma to (68, 2) points.
@@ -49,25 +111,8 @@ def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarra
     fit_sigma = fit_sigma and sm.n_shape > 0
     sigma_fixed = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
     free_pose = [0, 1, 2, 3, 4, 5] if sm.kind == "3d" else [2, 3, 4, 5]
-    width = float(np.ptp(points[:, 0]) + 1e-9)
-    LM = sm.landmark_map @ sm.mean
-    LS = np.einsum("lv,kvd->kld", sm.landmark_map, sm.shape_units)
-    LA = np.einsum("lv,kvd->kld", sm.landmark_map, sm.basis)
     n_p = len(free_pose)
-
-    def residuals(x):
-        q, sigma = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-        X = LM + np.tensordot(sigma, LS, axes=1) + np.tensordot(q[N_POSE:], LA, axes=1)
-        rx, ry, rz = q[:3]
-        cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-        r0 = np.array([cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx])
-        r1 = np.array([sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx])
-        u = q[3] * X @ r0 + q[4]
-        v = -q[3] * X @ r1 + q[5]
-        res = [(u - points[:, 0]) / width, (v - points[:, 1]) / width, np.sqrt(LAMBDA_COEF) * q[N_POSE:]]
-        if fit_sigma:
-            res.append(np.sqrt(LAMBDA_SHAPE) * sigma / sm.shape_sd)
-        return np.concatenate(res)
+    residuals, jacobian = landmark_problem(sm, points, free_pose, fit_sigma, sigma_fixed)
 
     starts = [q0] if q0 is not None else []
     base = initial_pose(sm, points, sigma_fixed)
@@ -91,7 +136,7 @@ def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarra
         if fit_sigma:
             x0 = np.r_[x0, sigma_fixed]
         x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-        sol = least_squares(residuals, x0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
+        sol = least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), x_scale="jac", max_nfev=200)
         if best is None or sol.cost < best.cost:
             best = sol
     q, sigma = _unpack(best.x, sm, free_pose, fit_sigma, sigma_fixed)

@@ -57,3 +57,23 @@ def test_candide_fit_recovers_projection():
     pts = sm.landmarks(q, sigma)
     fit = fit_landmarks(sm, pts)
     assert fit.rms_px < 0.5  # sub-pixel
+
+
+def test_analytic_jacobian_matches_finite_differences():
+    from aamtrack.train.shape_fit import landmark_problem
+
+    rng = np.random.default_rng(SEED)
+    sm = synthetic_3d_model(rng)
+    pts = face_layout() * np.array([120.0, -120.0]) + 100 + rng.normal(0, 2, (68, 2))
+    for free_pose, fit_sigma in (([0, 1, 2, 3, 4, 5], True), ([0, 1, 2, 3, 4, 5], False), ([2, 3, 4, 5], True)):
+        residuals, jacobian = landmark_problem(sm, pts, free_pose, fit_sigma, np.zeros(3))
+        n = len(free_pose) + 2 + (3 if fit_sigma else 0)
+        x = rng.normal(0, 0.2, n)
+        x[free_pose.index(3)] = np.log(110.0)
+        x[free_pose.index(4)] += 100
+        x[free_pose.index(5)] += 100
+        J = jacobian(x)
+        h = 1e-6
+        num = np.column_stack([(residuals(x + h * e) - residuals(x - h * e)) / (2 * h) for e in np.eye(n)])
+        assert J.shape == num.shape
+        assert np.abs(J - num).max() < 1e-6 * max(1.0, np.abs(num).max())  # central differences, O(h^2)

@@ -117,6 +117,16 @@ def tracking(model, seed: int, n_frames: int, scenario: str = "blind") -> tuple:
     out["without_gmm"]["n_key_points"] = int(len(keys0.index))
     for where in ("face_mm", "far_mm"):
         out[f"gmm_gain_{where[:-3]}"] = 1.0 - out["refined"][where] / out["without_gmm"][where]
+    # two bounds from the ground truth (analysis only, nothing is tuned on them): the refined key points at their
+    # true positions (what the RBF interpolation of those key points loses), and the prior's key points moved along
+    # the true surface normal by their true normal offset (the most any point-to-plane step -- the registration's
+    # pull and the projection -- could add to the prior; the rest of the error lies along the surface)
+    out["true_key_positions"] = _errors(deform_frames(frames[0], KeyPoints(keys.index, frames[:, keys.index],
+                                                                           keys.n_fixed)), frames, face, far)
+    normals = np.stack([gmm.surface_normals(f, mesh_spacing(f))[keys0.index] for f in frames])
+    offset = ((frames[:, keys0.index] - keys0.positions) * normals).sum(2)[..., None]
+    out["prior_true_normal"] = _errors(deform_frames(frames[0], KeyPoints(keys0.index, keys0.positions + normals * offset,
+                                                                          keys0.n_fixed)), frames, face, far)
     return out, seq
 
 
@@ -220,6 +230,10 @@ def main(argv: list[str] | None = None) -> int:
               f"({r['n_key_points']} key points, {r['seconds_per_frame']:.2f} s/frame, CPU {r['cpu_seconds_per_frame']:.2f}); without GMM "
               f"{w['face_mm']:.3f} / {w['far_mm']:.3f}; GMM gain {100 * track['gmm_gain_face']:.0f}% / "
               f"{100 * track['gmm_gain_far']:.0f}%", flush=True)
+        b, n = track["true_key_positions"], track["prior_true_normal"]
+        print(f"  bounds from the ground truth: refined key points at their true places {b['face_mm']:.3f} / "
+              f"{b['far_mm']:.3f}; prior moved by the true normal offsets {n['face_mm']:.3f} / {n['far_mm']:.3f} "
+              f"(at most {100 * (1 - n['far_mm'] / w['far_mm']):.0f}% far gain from a point-to-plane step)", flush=True)
         if not args.no_transfer:  # on the talking sequence: its ground truth on another identity has no head turn
             trans = transfer_case(model, make_sequence(model, n_frames=args.frames, seed=i), target_seed=i + 1)
             report["transfer"].append(trans)
@@ -244,6 +258,8 @@ def main(argv: list[str] | None = None) -> int:
         "error_without_gmm_face_mm": mean("without_gmm", "face_mm"),
         "error_without_gmm_far_mm": mean("without_gmm", "far_mm"),
         "gmm_gain_far": float(np.mean([x["gmm_gain_far"] for x in t])),
+        "error_true_key_positions_face_mm": mean("true_key_positions", "face_mm"),
+        "error_prior_true_normal_far_mm": mean("prior_true_normal", "far_mm"),
         "seconds_per_frame": mean("refined", "seconds_per_frame"),
         "seconds_per_frame_10k_points": report["timing_10k"]["median_seconds_per_frame"],
         "cpu_seconds_per_frame_10k_points": report["timing_10k"]["median_cpu_seconds_per_frame"],

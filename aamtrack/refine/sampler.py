@@ -9,7 +9,7 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
    current key points do not see yet (a cheek puff between landmarks) draws candidates;
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
-   scan's normal onto the scan (:func:`_project`);
+   scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
 Step 4 in detail (our choices; the paper names only the registration method). A surface says where the skin is
@@ -58,8 +58,10 @@ class SamplerConfig:
     points of F^0 (farthest point sampling) farther than ``rigid_beyond`` (thinned) spacings from every landmark,
     which follow the head's rigid motion; registration : False
     leaves the key points at their prior (an ablation: what the GMM registration adds); project : after the
-    registration, move each free key point along the scan's normal onto the scan (:func:`_project`);
-    seed : of the sampling.
+    registration, move each free key point along the scan's normal onto the scan (:func:`_project`); gate : a free
+    key point whose prior lies within this many (thinned) spacings of the scan's tangent plane stays at its prior:
+    the scan does not contradict it there, and registration and projection would only add drift along the surface
+    (seen on the ears); 0 turns it off; seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -76,6 +78,7 @@ class SamplerConfig:
     n_rigid_anchors: int = 150
     registration: bool = True
     project: bool = True
+    gate: float = 0.02
     seed: int = 0
 
 
@@ -219,6 +222,9 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                           bases=bases, anchor_to=prior, cache=cache).controls
         if config.project:
             out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
+        if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
+            keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if progress is not None:
             progress(1)
     return out

@@ -10,7 +10,11 @@ is the older sequence (talking, smiles, blinks, brows; whole head scanned, no no
 vertices 0..9408) and far from the landmarks (face vertices more than 2.5 cm from every landmark in F^0), for the
 68-landmark thin-plate RBF, the refined key points, and the refined key points without the GMM step (same
 sampler, key points left at the prior: landmark prediction near the landmarks, the head's rigid motion far from
-them) -- the GMM step's own contribution. Time per frame of the whole refinement on one core, and again (median of
+them) -- the GMM step's own contribution ("GMM step": the registration, the projection onto the scan and the
+gate, all of step 4 of the sampler). The errors of those two are split into their parts along the true surface
+normal and along the surface, and two bounds are computed from the ground truth (analysis only; nothing is tuned
+on them): the refined key points at their true places (the loss of the RBF interpolation itself) and the prior's
+key points moved by their true normal offsets (the best any point-to-plane step could do). Time per frame of the whole refinement on one core, and again (median of
 3 runs) for scans of 10,000 points. Also: the transfer error to another identity against ground truth (source: a
 shuffled random half of its vertices so only the 68 landmarks correspond), and one GMM registration of 10,000
 points. Compile time is reported apart.
@@ -68,10 +72,21 @@ def machine() -> dict:
             "python": platform.python_version(), "threads": os.environ.get("OMP_NUM_THREADS")}
 
 
-def _errors(pred: np.ndarray, frames: np.ndarray, face: np.ndarray, far: np.ndarray) -> dict:
-    err = np.linalg.norm(pred[1:] - frames[1:], axis=2) * CM_TO_MM
-    return {"face_mm": float(err[:, face].mean()), "far_mm": float(err[:, far].mean()),
-            "all_mm": float(err.mean()), "face_p95_mm": float(np.percentile(err[:, face], 95))}
+def _errors(pred: np.ndarray, frames: np.ndarray, face: np.ndarray, far: np.ndarray,
+            normals: np.ndarray | None = None) -> dict:
+    """Mean errors (mm) over the face and far from the landmarks; with the true surface normals (T, V, 3) also
+    their parts along the normal (what a scan shows) and along the surface (what it does not)."""
+    diff = pred[1:] - frames[1:]
+    err = np.linalg.norm(diff, axis=2) * CM_TO_MM
+    out = {"face_mm": float(err[:, face].mean()), "far_mm": float(err[:, far].mean()),
+           "all_mm": float(err.mean()), "face_p95_mm": float(np.percentile(err[:, face], 95))}
+    if normals is not None:
+        normal = (diff * normals[1:]).sum(2)
+        along = np.linalg.norm(diff - normals[1:] * normal[..., None], axis=2) * CM_TO_MM
+        normal = np.abs(normal) * CM_TO_MM
+        out.update(face_normal_mm=float(normal[:, face].mean()), face_along_mm=float(along[:, face].mean()),
+                   far_normal_mm=float(normal[:, far].mean()), far_along_mm=float(along[:, far].mean()))
+    return out
 
 
 def _scans(seq, scenario: str, rng, *, n_points: int | None = None) -> list:
@@ -101,22 +116,33 @@ def tracking(model, seed: int, n_frames: int, scenario: str = "blind") -> tuple:
     out = {"seed": seed, "frames": n_frames, "scenario": scenario, "scan_points": int(np.mean([len(s) for s in scans])),
            "far_vertices": int(far.sum()),
            "motion_face_mm": float(np.linalg.norm(frames[1:, face] - frames[0, face], axis=2).mean() * CM_TO_MM)}
+    normals = np.stack([gmm.surface_normals(f, mesh_spacing(f)) for f in frames])  # of the true surfaces
     out["landmarks_68"] = _errors(deform_frames(frames[0], KeyPoints(lm, frames[:, lm], len(lm))), frames, face, far)
     config = SamplerConfig(seed=seed)
     start, cpu = time.perf_counter(), time.process_time()
     keys = refine_key_points(frames[0], scans, frames[:, lm], lm, config=config)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
-    out["refined"] = _errors(deform_frames(frames[0], keys), frames, face, far)
+    out["refined"] = _errors(deform_frames(frames[0], keys), frames, face, far, normals)
     out["refined"].update(n_key_points=int(len(keys.index)), rounds_accepted=len(keys.errors) - 1,
                           scan_distance_mm=[e * CM_TO_MM for e in keys.errors], seconds_per_frame=elapsed / n_frames,
                           cpu_seconds_per_frame=cpu / n_frames)
     # without the GMM step: the same sampler with the key points left at their prior
     no_gmm = dataclasses.replace(config, registration=False)
     keys0 = refine_key_points(frames[0], scans, frames[:, lm], lm, config=no_gmm)
-    out["without_gmm"] = _errors(deform_frames(frames[0], keys0), frames, face, far)
+    out["without_gmm"] = _errors(deform_frames(frames[0], keys0), frames, face, far, normals)
     out["without_gmm"]["n_key_points"] = int(len(keys0.index))
     for where in ("face_mm", "far_mm"):
         out[f"gmm_gain_{where[:-3]}"] = 1.0 - out["refined"][where] / out["without_gmm"][where]
+    # two bounds from the ground truth (analysis only, nothing is tuned on them): the refined key points at their
+    # true positions (what the RBF interpolation of those key points loses), and the prior's key points moved along
+    # the true surface normal by their true normal offset (the most any point-to-plane step -- the registration's
+    # pull and the projection -- could add to the prior; the rest of the error lies along the surface)
+    out["true_key_positions"] = _errors(deform_frames(frames[0], KeyPoints(keys.index, frames[:, keys.index],
+                                                                           keys.n_fixed)), frames, face, far)
+    n_key = normals[:, keys0.index]
+    offset = ((frames[:, keys0.index] - keys0.positions) * n_key).sum(2)[..., None]
+    out["prior_true_normal"] = _errors(deform_frames(frames[0], KeyPoints(keys0.index, keys0.positions + n_key * offset,
+                                                                          keys0.n_fixed)), frames, face, far)
     return out, seq
 
 
@@ -220,6 +246,14 @@ def main(argv: list[str] | None = None) -> int:
               f"({r['n_key_points']} key points, {r['seconds_per_frame']:.2f} s/frame, CPU {r['cpu_seconds_per_frame']:.2f}); without GMM "
               f"{w['face_mm']:.3f} / {w['far_mm']:.3f}; GMM gain {100 * track['gmm_gain_face']:.0f}% / "
               f"{100 * track['gmm_gain_far']:.0f}%", flush=True)
+        print(f"  along the normal / along the surface (mm): refined face {r['face_normal_mm']:.3f} / "
+              f"{r['face_along_mm']:.3f}, far {r['far_normal_mm']:.3f} / {r['far_along_mm']:.3f}; without GMM face "
+              f"{w['face_normal_mm']:.3f} / {w['face_along_mm']:.3f}, far {w['far_normal_mm']:.3f} / "
+              f"{w['far_along_mm']:.3f}", flush=True)
+        b, n = track["true_key_positions"], track["prior_true_normal"]
+        print(f"  bounds from the ground truth: refined key points at their true places {b['face_mm']:.3f} / "
+              f"{b['far_mm']:.3f}; prior moved by the true normal offsets {n['face_mm']:.3f} / {n['far_mm']:.3f} "
+              f"(at most {100 * (1 - n['far_mm'] / w['far_mm']):.0f}% far gain from a point-to-plane step)", flush=True)
         if not args.no_transfer:  # on the talking sequence: its ground truth on another identity has no head turn
             trans = transfer_case(model, make_sequence(model, n_frames=args.frames, seed=i), target_seed=i + 1)
             report["transfer"].append(trans)
@@ -244,6 +278,8 @@ def main(argv: list[str] | None = None) -> int:
         "error_without_gmm_face_mm": mean("without_gmm", "face_mm"),
         "error_without_gmm_far_mm": mean("without_gmm", "far_mm"),
         "gmm_gain_far": float(np.mean([x["gmm_gain_far"] for x in t])),
+        "error_true_key_positions_face_mm": mean("true_key_positions", "face_mm"),
+        "error_prior_true_normal_far_mm": mean("prior_true_normal", "far_mm"),
         "seconds_per_frame": mean("refined", "seconds_per_frame"),
         "seconds_per_frame_10k_points": report["timing_10k"]["median_seconds_per_frame"],
         "cpu_seconds_per_frame_10k_points": report["timing_10k"]["median_cpu_seconds_per_frame"],

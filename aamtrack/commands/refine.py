@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, OutputError
+from ..io.atomic import check_replaceable
 from ..io.csvout import read_tracking_csv
 from ..io.obj import N_LANDMARKS, check_landmark_spread, check_points, frame_files, load_npz, read_mesh, read_point_cloud, save_animation
 
@@ -93,6 +94,15 @@ def load_scans(path: Path, landmarks_path: Path | None = None) -> tuple[list, np
     return scans, landmarks.astype(np.float64)
 
 
+def _check_obj_dir(path: Path) -> None:
+    """OutputError unless ``path`` is a folder or can be made one (no file on it or on a parent)."""
+    p = path
+    while not p.exists() and not p.is_symlink() and p != p.parent:
+        p = p.parent
+    if not p.is_dir():
+        raise OutputError(f"{p}: exists and is not a folder (--obj-dir {path})")
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -105,6 +115,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.scans}: one frame only: nothing to track (frame 0 is the template)")
     if not args.out.parent.is_dir():
         raise InputError(f"{args.out}: folder {args.out.parent} does not exist")
+    # the outputs are checked before the (long) tracking, not only when they are written
+    check_replaceable(args.out)
+    if args.obj_dir is not None:
+        _check_obj_dir(args.obj_dir)
     if min(len(s) for s in scans) < 4:
         raise InputError(f"{args.scans}: a scan has fewer than 4 points")
     config = SamplerConfig(seed=args.seed)

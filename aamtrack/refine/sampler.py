@@ -9,7 +9,7 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
    current key points do not see yet (a cheek puff between landmarks) draws candidates;
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
-   scan's normal onto the scan (:func:`_project`);
+   scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
 Step 4 in detail (our choices; the paper names only the registration method). A surface says where the skin is
@@ -24,7 +24,8 @@ Measured on ICT sequences in benchmarks/refine.py (with and without the registra
 
 Only the landmarks are assumed to correspond between frames: the scans are point clouds (any subset of the face,
 any order), and the error that steers the loop is the mean point-to-plane distance from ``D^t(F^0)`` to the
-scans, truncated so that template parts a scan does not cover count the same wherever they are.
+scans, truncated so that template parts a scan does not cover count the same wherever they are, over the template
+points each scan covers at the start (so that the parts no scan covers do not dilute the relative gain).
 """
 
 from __future__ import annotations
@@ -58,8 +59,10 @@ class SamplerConfig:
     points of F^0 (farthest point sampling) farther than ``rigid_beyond`` (thinned) spacings from every landmark,
     which follow the head's rigid motion; registration : False
     leaves the key points at their prior (an ablation: what the GMM registration adds); project : after the
-    registration, move each free key point along the scan's normal onto the scan (:func:`_project`);
-    seed : of the sampling.
+    registration, move each free key point along the scan's normal onto the scan (:func:`_project`); gate : a free
+    key point whose prior lies within this many (thinned) spacings of the scan's tangent plane stays at its prior:
+    the scan does not contradict it there, and registration and projection would only add drift along the surface
+    (seen on the ears); 0 turns it off; seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -76,6 +79,7 @@ class SamplerConfig:
     n_rigid_anchors: int = 150
     registration: bool = True
     project: bool = True
+    gate: float = 0.02
     seed: int = 0
 
 
@@ -85,7 +89,8 @@ class KeyPoints:
 
     index : (n_keys,) int64 vertex indices into F^0; the first ``n_fixed`` are the given landmarks.
     positions : (n_frames, n_keys, 3) float64 key point positions in every frame (frame 0: F^0).
-    errors : mean distance from D^t(F^0) to the scans, before the first round and after each accepted round.
+    errors : mean distance from D^t(F^0) to the scans (over the template points each scan covers at the start),
+    before the first round and after each accepted round.
     n_keys : number of key points after each of those steps.
     """
 
@@ -179,12 +184,13 @@ def _observed_motion(pred: np.ndarray, neutral: np.ndarray, surfaces: Sequence, 
     return out - neutral
 
 
-def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf) -> float:
-    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame), each
-    truncated at ``cap``."""
+def _surface_error(pred: np.ndarray, surfaces: Sequence, cap: float = np.inf, covered: Sequence | None = None) -> float:
+    """Mean point-to-plane distance from D^t(F^0) to the scans, frames 1.. (0 for a single frame), each truncated at
+    ``cap``; with ``covered`` (per frame a bool mask of F^0's points) only over those points."""
     if len(pred) < 2:
         return 0.0
-    return float(np.mean([surfaces[t].distance(pred[t], cap).mean() for t in range(1, len(pred))]))
+    return float(np.mean([surfaces[t].distance(pred[t] if covered is None else pred[t][covered[t]], cap).mean()
+                          for t in range(1, len(pred))]))
 
 
 def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigids, moving, spacing, cap, config,
@@ -219,6 +225,9 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                           bases=bases, anchor_to=prior, cache=cache).controls
         if config.project:
             out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
+        if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
+            keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if progress is not None:
             progress(1)
     return out
@@ -350,7 +359,12 @@ def refine_key_points(
     cap = 4.0 * base_spacing  # truncation of the scan distance (template parts the scans do not cover)
 
     pred = _predict(neutral, index, positions, config.kernel, config.smoothing)
-    error = _surface_error(pred, surfaces, cap)
+    # the error is taken over the points of F^0 that have scan within ``cap`` at the start (the 68-landmark
+    # deformation), each frame its own set: template parts no scan covers (the back of the head) would add the
+    # same ``cap`` to every round and dilute the relative gain that decides when to stop
+    covered = [np.isfinite(s.tree.query(p, distance_upper_bound=cap)[0]) for s, p in zip(surfaces, pred, strict=True)]
+    covered = [c if c.any() else np.ones_like(c) for c in covered]
+    error = _surface_error(pred, surfaces, cap, covered)
     errors, n_keys = [error], [len(index)]
     log.info("sampler: %d key points, error %.4g", len(index), error)
     for round_ in range(config.max_rounds):
@@ -372,7 +386,7 @@ def refine_key_points(
             new_positions = _register_frames(neutral, new_index, new_positions, n_fixed, scenes, surfaces, rigids,
                                              moving, spacing, cap, config, progress, rng)
         new_pred = _predict(neutral, new_index, new_positions, config.kernel, config.smoothing)
-        new_error = _surface_error(new_pred, surfaces, cap)
+        new_error = _surface_error(new_pred, surfaces, cap, covered)
         log.info("sampler round %d: %d key points (+%d of %d candidates), error %.4g", round_ + 1,
                  len(new_index), len(kept), len(cand), new_error)
         if new_error >= error:

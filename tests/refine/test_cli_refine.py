@@ -159,3 +159,33 @@ def test_bad_input(tmp_path, capsys, case):
     assert code == 1
     assert len(err) == 1 and err[0].startswith("aamtrack refine: error: "), err
     assert not out.exists() and not (tmp_path / "objs").exists() and not list(tmp_path.glob(".out*"))
+
+
+@pytest.mark.parametrize("case", ["obj-dir is a file", "obj-dir under a file", "out is a folder"])
+def test_unusable_outputs_are_refused_before_tracking(tmp_path, capsys, monkeypatch, case):
+    import aamtrack.refine.sampler as sampler
+
+    def fail(*args, **kwargs):
+        raise AssertionError("tracking ran although the output cannot be written")
+
+    monkeypatch.setattr(sampler, "refine_key_points", fail)
+    rng = np.random.default_rng(SEED + 3)
+    frames = _sequence(3)
+    write_obj(tmp_path / "tpl.obj", frames[0], QUADS, LANDMARKS)
+    _scans_npz(tmp_path / "scans.npz", frames, rng)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "folder.npz").mkdir()
+    out, obj_dir = tmp_path / "out.npz", None
+    if case == "obj-dir is a file":
+        obj_dir = tmp_path / "afile"
+    elif case == "obj-dir under a file":
+        obj_dir = tmp_path / "afile" / "objs"
+    else:
+        out = tmp_path / "folder.npz"
+    argv = ["refine", str(tmp_path / "tpl.obj"), str(tmp_path / "scans.npz"), "--out", str(out)]
+    code = main(argv + (["--obj-dir", str(obj_dir)] if obj_dir else []))
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and err[0].startswith("aamtrack refine: error: "), err
+    assert not (tmp_path / "out.npz").exists() and (tmp_path / "afile").read_text() == "x"
+    assert list((tmp_path / "folder.npz").iterdir()) == []

@@ -1,5 +1,7 @@
 """Key point sampler: correlation-based selection on a constructed example; refinement on a synthetic sequence."""
 
+from dataclasses import replace
+
 import numpy as np
 from conftest import SEED
 from scipy.spatial import cKDTree
@@ -91,3 +93,33 @@ def test_projection_onto_scan_along_its_normal_only():
     assert np.abs(out[:, :2] - inner[:, :2]).max() < 2e-2  # moved along the (nearly vertical) normal only
     beyond = np.array([[1.3, 0.0, 0.05], [5.0, 5.0, 1.0]])  # past the scan's border; far from any scan point
     assert np.array_equal(_project(beyond, _Surface(scan), cap=0.5), beyond)  # they stay
+
+
+
+def test_gate_keeps_key_points_whose_prior_lies_on_the_scan():
+    # one registration pass (the sampler's step 4): with a gate wider than any distance to the scan every free key
+    # point's prior "lies on the scan", so the key points must stay exactly at their prior -- where the ablation
+    # without registration puts them; with the gate off the registration moves them
+    from aamtrack.refine.gmm import thin
+    from aamtrack.refine.sampler import _register_frames, _Surface, mesh_spacing
+
+    rng = np.random.default_rng(SEED + 9)
+    neutral = bumpy_surface(16)
+    bump = 0.3 * np.exp(-((neutral[:, 0] - 0.3) ** 2 + (neutral[:, 1] - 0.5) ** 2) / 0.03)
+    frames = np.stack([neutral + np.outer(bump * a, [0.0, 0.0, 1.0]) for a in (0.0, 0.5, 1.0)])
+    scans = [rng.permutation(f) for f in frames]
+    landmarks = np.array([i * 16 + j for i in (2, 8, 13) for j in (2, 8, 13)])
+    index = np.r_[landmarks, rng.choice(np.setdiff1d(np.arange(256), landmarks), 20, replace=False)]
+    positions = np.concatenate([frames[:, landmarks], np.repeat(neutral[None, index[9:]], 3, 0)], axis=1)
+    moving = thin(neutral, mesh_spacing(neutral), rng)
+    spacing = mesh_spacing(neutral[moving])
+    common = (neutral, index, positions, 9, scans, [_Surface(s) for s in scans], [lambda p: p] * 3, moving, spacing,
+              4 * spacing)
+    base = SamplerConfig(thin_cell=1.0, rigid_beyond=1e9)
+
+    def run(**kw):
+        return _register_frames(*common, replace(base, **kw), None, np.random.default_rng(SEED))
+
+    prior, gated, moved = run(registration=False), run(gate=1e9), run(gate=0.0)
+    assert np.allclose(gated, prior, atol=1e-12)
+    assert np.abs(moved - prior).max() > 1e-2  # the registration does move them without the gate (bump: 0.3)

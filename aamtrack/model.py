@@ -272,7 +272,7 @@ def load_model(path: str | Path) -> Model:
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:  # our handle: closed on a bad zip too
             if not hasattr(z, "files"):
                 raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
             if "meta" not in z.files:

@@ -140,7 +140,7 @@ def load_npz(path: str | Path) -> dict:
     """Every array of an ``.npz`` (no pickles), or InputError for a missing, truncated or corrupt file."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # our handle: closed on a bad zip too
             return {k: data[k] for k in data.files}
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None

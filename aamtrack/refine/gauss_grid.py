@@ -4,8 +4,8 @@
 ``sum_j w_ij`` and weighted mean of the y_j) that the EM-like registration steps use. Pairs with
 ``exp(-r^2/h^2) < tol`` are skipped (a cutoff radius ``h sqrt(ln 1/tol)``): approximate to that tolerance per
 pair; ``tol=None`` gives the exact O(n m) sums. Memory is O(n + m) (no pairwise matrix): the grid keeps its occupied
-cells as a sorted list of keys, and a pair list (:meth:`GaussGrid.pairs`) holds a bounded number of neighbours
-per point on a surface.
+cells as a sorted list of keys (with a table of each cell's first point where the grid has few cells), and each
+x visits the 27 cells around it.
 """
 
 from __future__ import annotations

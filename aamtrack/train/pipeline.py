@@ -81,7 +81,7 @@ class TrainConfig:
     map_refine_images: int = 300
     forehead_cut: float = 0.55
     n_pca: int = 20
-    n_corrective: int = 12
+    n_corrective: int = 20
     validator_images: int = 600
     seed: int = 0
 

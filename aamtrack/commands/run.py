@@ -27,7 +27,8 @@ from ..track.benchmark import warmup
 from ..track.events import annotate
 from ..track.replay import realtime
 from ..track.smooth import SmoothConfig, smooth_results
-from ..track.timing import ms_stats, timed
+from ..track.pipeline import run_pipeline
+from ..track.timing import ms_stats
 from ..track.tracker import Tracker
 
 log = logging.getLogger(__name__)
@@ -109,13 +110,19 @@ def output_dir(input_: str, out_dir: Path | None) -> Path:
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
                replay: bool = False, fps: float | None = None, progress: bool = True,
-               smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None) -> dict:
+               smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None,
+               name: str | None = None, pipelined: bool = True, on_frame=None, extra: dict | None = None,
+               tracker: Tracker | None = None) -> dict:
     """Track one input and write its outputs; returns the summary. The input and the output folder are checked
     before the work; every output is written under a temporary name and all are committed together at the
     end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were).
 
     smooth: One Euro smoothing of the results (None: raw tracker output). report: also write report.html
-    (needs matplotlib). notify: called with a one-line message while numba compiles on a first run."""
+    (needs matplotlib). notify: called with a one-line message while numba compiles on a first run.
+    name: stem of the output files (default: the input's, see :func:`output_base`). pipelined: decode ahead and
+    write in threads (False: every stage in this thread; the same outputs). on_frame: called with 1 per frame
+    (a batch's overall progress). extra: more entries for the summary (a batch's options record). tracker: a
+    Tracker for ``model_path`` already made and warmed up (a batch worker keeps one)."""
     t_start = time.perf_counter()
     if report:
         from ..io.report import require_matplotlib
@@ -124,27 +131,31 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     source = open_frames(input_, fps=fps)
     with source, OutputSet(out_dir) as outputs:
         summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
-                         pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify)
+                         pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify,
+                         name=name, pipelined=pipelined, on_frame=on_frame, extra=extra or {}, tracker=tracker)
         outputs.commit()
     return summary
 
 
 def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
-           pts: bool, replay: bool, progress: bool, smooth, report: bool, notify) -> dict:
-    model = load_model(model_path)
-    tracker = Tracker(model)
-    outputs.prepare()
-    t_warm = _warm_up(tracker, notify)
+           pts: bool, replay: bool, progress: bool, smooth, report: bool, notify, name, pipelined: bool, on_frame,
+           extra: dict, tracker) -> dict:
+    if tracker is None:
+        tracker = Tracker(load_model(model_path))
+        outputs.prepare()
+        t_warm = _warm_up(tracker, notify)
+    else:
+        outputs.prepare()
+        t_warm = 0.0
+    model = tracker.model
     out_dir = outputs.folder
-    stem = output_base(input_)[1]
+    stem = name or output_base(input_)[1]
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
     pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
     sm = model.shape
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
-    t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
-    frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
-    t_first = None
+    per_frame = {"detect": [], "pyramid": [], "search": []}
     rep = None
     if report:
         from ..io.report import ReportBuilder
@@ -161,13 +172,12 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                        desc=display_name(stem))
             images = {}
             keep = ov is not None or rep is not None
-            stream = annotate(tracker.track(_remember(frames, images) if keep else frames),
-                              min_confidence=tracker.config.min_confidence)
-            if smooth is not None:
-                stream = smooth_results(stream, smooth)
-            for res in stream:
-                t_first = t_first or time.perf_counter()
-                t = time.perf_counter()
+
+            def results_of(frames):
+                return annotate(tracker.track(_remember(frames, images) if keep else frames),
+                                min_confidence=tracker.config.min_confidence)
+
+            def write(res):  # the writer thread: CSV row, overlay frame, report, .pts
                 csv_w.write(res)
                 image = images.pop(res.frame, None) if keep else None
                 if ov is not None:
@@ -176,13 +186,20 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                     rep.add(res, image)
                 if pts and res.success:
                     write_pts_per_frame(pts_dir, res)
-                per_frame["output"].append(time.perf_counter() - t)
+
+            def on_result(res):  # the tracker's thread
                 for k in ("detect", "pyramid", "search"):
                     if k in res.timings:
                         per_frame[k].append(res.timings[k])
                 counts["read"] += 1
                 counts[res.status] += 1
                 bar.update(1)
+                if on_frame is not None:
+                    on_frame(1)
+
+            times = run_pipeline(source, results_of, write, on_result=on_result, pipelined=pipelined,
+                                 smooth=(lambda s: smooth_results(s, smooth)) if smooth is not None else None,
+                                 replay=(lambda f: realtime(f, source.fps)) if replay else None)
             bar.close()
         except BaseException:
             if ov is not None:
@@ -196,19 +213,22 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
     wall = time.perf_counter() - t_start
 
     track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
+    t_first = times.t_first
     summary = {
         "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
         "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
         "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
         "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
         "realtime": replay, "video_fps": source.fps,
-        "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
-                      "track": ms_stats(track_times)},
+        "timing_ms": {"decode": ms_stats(times.decode), **{k: ms_stats(v) for k, v in per_frame.items()},
+                      "output": ms_stats(times.output), "track": ms_stats(track_times)},
+        "pipelined": pipelined,
         "start_to_first_result_s": (t_first - t_start) if t_first else None, "warmup_s": t_warm,
         "smoothing": None if smooth is None else {"filter": "one_euro", "min_cutoff_hz": smooth.min_cutoff,
                                                   "beta": smooth.beta, "d_cutoff_hz": smooth.d_cutoff},
         "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},
+        **extra,
     }
     if ov is not None:
         summary["outputs"]["video"] = str(video_path)

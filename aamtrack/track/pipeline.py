@@ -1,0 +1,213 @@
+"""A pipelined tracking run: decoding ahead in one thread, tracking in the caller's thread, smoothing and writing
+in another, joined by bounded queues (``aamtrack run``, and ``aamtrack bench``'s end-to-end figure).
+
+    source ──► [decode thread] ──queue──► tracker (caller's thread) ──queue──► [writer thread]: smooth, write
+
+Order is kept (one producer and one consumer per FIFO queue), so every frame gets its row, in frame order. The
+numba kernels and OpenCV release the GIL, so the three stages overlap on a multi-core machine; the queues are
+bounded (``depth`` frames), so memory stays flat whatever the video's length.
+
+Errors: an exception in any stage stops the others and is raised in the caller's thread (the decoder's or the
+writer's own exception, not a secondary one), after both threads have ended. The caller's ``OutputSet`` then
+discards every temporary output, so nothing half-written remains. KeyboardInterrupt (Ctrl-C, or a signal the
+CLI turns into one) reaches the caller's thread and is handled the same way.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Iterator
+
+from .timing import timed
+
+__all__ = ["read_ahead", "ResultWriter", "run_pipeline", "PipelineTimes"]
+
+_END = object()
+_POLL = 0.1  # seconds between checks of the other side while a queue is full or empty
+
+
+class _Failure:
+    def __init__(self, exc: BaseException):
+        self.exc = exc
+
+
+def _put(q: queue.Queue, item, stop: threading.Event) -> bool:
+    """Put ``item`` unless ``stop`` is set meanwhile; False when stopped."""
+    while not stop.is_set():
+        try:
+            q.put(item, timeout=_POLL)
+            return True
+        except queue.Full:
+            continue
+    return False
+
+
+def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-decode") -> Iterator:
+    """Yield the items of ``iterable``, produced ahead in a thread (at most ``depth`` waiting).
+
+    An exception raised while producing an item is raised here, at that item's place in the sequence. Closing
+    the generator (or an exception in the consumer) stops the thread and waits for it.
+    """
+    q: queue.Queue = queue.Queue(maxsize=max(1, depth))
+    stop = threading.Event()
+
+    def produce():
+        try:
+            for item in iterable:
+                if not _put(q, item, stop):
+                    return
+        except BaseException as exc:  # handed to the consumer, raised there
+            _put(q, _Failure(exc), stop)
+            return
+        _put(q, _END, stop)
+
+    thread = threading.Thread(target=produce, name=name, daemon=True)
+    thread.start()
+    try:
+        while True:
+            try:
+                item = q.get(timeout=_POLL)
+            except queue.Empty:
+                if not thread.is_alive() and q.empty():  # pragma: no cover - the producer always says why it ended
+                    raise RuntimeError("frame reader ended without a reason") from None
+                continue
+            if item is _END:
+                return
+            if isinstance(item, _Failure):
+                raise item.exc
+            yield item
+    finally:
+        stop.set()
+        thread.join()
+
+
+class ResultWriter:
+    """Hands results to ``consume`` in a thread, in order (a bounded queue of ``depth`` items between).
+
+    ``put(item)`` raises the writer's exception as soon as the writer has failed; ``finish()`` waits for every
+    item to be consumed and raises it too; ``stop()`` (on the caller's own failure) ends the thread without
+    consuming what is left. ``consume_all`` receives the whole stream as an iterator (so a stateful filter such as
+    smoothing can sit in the writer thread) and is called once.
+    """
+
+    def __init__(self, consume_all: Callable[[Iterator], None], *, depth: int = 64, name: str = "aamtrack-write"):
+        self._q: queue.Queue = queue.Queue(maxsize=max(1, depth))
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self._consume_all = consume_all
+        self._thread = threading.Thread(target=self._main, name=name, daemon=True)
+        self._thread.start()
+
+    def _items(self) -> Iterator:
+        while True:
+            try:
+                item = self._q.get(timeout=_POLL)
+            except queue.Empty:
+                if self._stop.is_set():
+                    return
+                continue
+            if item is _END:
+                return
+            yield item
+
+    def _main(self) -> None:
+        try:
+            self._consume_all(self._items())
+        except BaseException as exc:  # raised in the caller's thread by put()/finish()
+            self._error = exc
+            self._stop.set()
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def put(self, item) -> None:
+        self._raise()
+        if not _put(self._q, item, self._stop):
+            self._raise()
+            raise RuntimeError("result writer stopped")  # pragma: no cover - stop() is only called on failure
+
+    def finish(self) -> None:
+        """Wait until everything put has been consumed; raise the writer's exception if it failed."""
+        self._raise()
+        _put(self._q, _END, self._stop)
+        self._thread.join()
+        self._raise()
+
+    def stop(self) -> None:
+        """End the thread now, dropping what it has not consumed (the run failed elsewhere)."""
+        self._stop.set()
+        self._thread.join()
+
+
+@dataclass
+class PipelineTimes:
+    """Per-frame seconds of each stage (decode in the reader thread, output in the writer thread)."""
+
+    decode: list = field(default_factory=list)
+    output: list = field(default_factory=list)
+    n_frames: int = 0
+    t_first: float | None = None
+
+
+def run_pipeline(frames: Iterable, results_of: Callable[[Iterable], Iterable], write: Callable,
+                 *, smooth: Callable[[Iterable], Iterable] | None = None, on_result: Callable | None = None,
+                 replay: Callable[[Iterable], Iterable] | None = None, depth: int = 32,
+                 pipelined: bool = True) -> PipelineTimes:
+    """Run ``results_of(frames)`` (the tracker) in this thread between a reader and a writer thread.
+
+    Parameters
+    ----------
+    frames : iterable of frames (a FrameSource), read ahead in a thread
+    results_of : frames -> iterable of FrameResult (the tracker's generator, annotated)
+    write : called with each (smoothed) FrameResult, in frame order, in the writer thread
+    smooth : optional stream filter applied in the writer thread (One Euro smoothing)
+    on_result : called in this thread with each raw result (counts, progress bar)
+    replay : optional filter on the frames in this thread (``--realtime``: its clock is the tracker's demand)
+    depth : queue length between stages, in frames
+    pipelined : False runs every stage in this thread (the single-thread reference; same outputs)
+    """
+    times = PipelineTimes()
+    decoded = timed(frames, times.decode)
+
+    def consume_all(results):
+        stream = smooth(results) if smooth is not None else results
+        for res in stream:
+            t = time.perf_counter()
+            write(res)
+            times.output.append(time.perf_counter() - t)
+
+    if not pipelined:
+        stream = decoded if replay is None else replay(decoded)
+
+        def counted(results):
+            for res in results:
+                times.t_first = times.t_first or time.perf_counter()
+                times.n_frames += 1
+                if on_result is not None:
+                    on_result(res)
+                yield res
+
+        consume_all(counted(results_of(stream)))
+        return times
+
+    ahead = read_ahead(decoded, depth=depth)
+    writer = ResultWriter(consume_all, depth=2 * depth)
+    try:
+        stream = ahead if replay is None else replay(ahead)
+        for res in results_of(stream):
+            times.t_first = times.t_first or time.perf_counter()
+            times.n_frames += 1
+            if on_result is not None:
+                on_result(res)
+            writer.put(res)
+        writer.finish()
+    except BaseException:
+        writer.stop()
+        raise
+    finally:
+        ahead.close()
+    return times

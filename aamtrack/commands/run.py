@@ -15,6 +15,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ..errors import InputError
+from .batch import default_jobs, expand_inputs, run_batch, run_options, summary_line
 from ..io.csvout import TrackingCsvWriter
 from ..io.atomic import OutputSet
 from ..io.frames import display_name, open_frames
@@ -41,6 +42,8 @@ EPILOG = """examples:
   aamtrack run 'frames/*.png' --fps 30 --pts      a glob of images (quoted), one .pts per tracked frame
   aamtrack run clip.mp4 --kind 2d --no-smooth     the 2D model, raw (unsmoothed) landmarks
   aamtrack -v run clip.mp4                        log detections, re-detections and why frames were lost
+  aamtrack run videos/ --out-dir out --jobs 2     every video in videos/, two at a time; out/batch.csv
+  aamtrack run 'day*/*.mp4' --scheduler tcp://head:8786 --out-dir /shared/out   on a Dask cluster
 
 outputs (in --out-dir, default <input>_aamtrack/ next to the input):
   <name>.csv            one row per frame: status, confidence, pose, 68 landmarks (and 3D points, units)
@@ -48,6 +51,12 @@ outputs (in --out-dir, default <input>_aamtrack/ next to the input):
   <name>_overlay.webm   with --video (.mp4 where OpenCV has an H.264 encoder; mp4v .mp4 as a last resort)
   <name>_pts/           with --pts: one iBUG .pts file per tracked frame
   report.html           with --report: plots, lost stretches with thumbnails, summary (needs matplotlib)
+
+a batch (several inputs, or a folder / glob of videos): each input's outputs in <out-dir>/<name>/ (its safe
+stem; inputs sharing a stem get a hash of their path appended), and <out-dir>/batch.csv: input, frames,
+tracked, lost, fps, status (done / skipped / failed), error. A failed input does not stop the others; the exit
+status is 1 if any failed. Inputs finished by an earlier run with the same model and options are skipped
+unless --overwrite. Several arguments need --out-dir.
 
 smoothing: landmarks and pose pass through a One Euro filter (Casiez et al., CHI 2012), reset on every
 detection and after lost frames. Lower --smooth-beta smooths more and lags more on slow motion; see README."""
@@ -58,8 +67,19 @@ def register(sub) -> None:
                        description="Track the largest face in a recorded video (or a folder / glob of images read\n"
                                    "in name order) and write one CSV row per frame plus a JSON summary.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", help="video file, folder of images, or a quoted glob such as 'frames/*.png'")
+    p.add_argument("input", nargs="+",
+                   help="video file, folder of images, or a quoted glob such as 'frames/*.png'; several, or a "
+                        "folder / glob of videos, make a batch (outputs in <out-dir>/<name>/, see below)")
     model_and_output_arguments(p)
+    b = p.add_argument_group("many inputs (a batch)")
+    b.add_argument("--jobs", type=int, metavar="N",
+                   help=f"track N inputs at once in worker processes (default: the number of cores, "
+                        f"{default_jobs()} here)")
+    b.add_argument("--scheduler", metavar="ADDRESS",
+                   help="send the inputs to a Dask distributed scheduler (tcp://host:8786), one task per input; the "
+                        "workers write to --out-dir, which they must share (pip install 'aamtrack[dask]')")
+    b.add_argument("--overwrite", action="store_true",
+                   help="redo inputs already finished with the same model and options (default: skip them)")
     p.add_argument("--video", action="store_true",
                    help="also write an overlay video: mesh, landmarks, pose axes, frame number, status, confidence")
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per tracked frame")
@@ -272,6 +292,12 @@ def _remember(frames, images: dict):
 
 def run(args: argparse.Namespace) -> int:
     model_path = args.model or default_model_path(args.kind)
+    if args.jobs is not None and not 1 <= args.jobs <= 1024:
+        raise InputError(f"--jobs {args.jobs}: expected a number of worker processes, 1 or more")
+    if args.jobs is not None and args.scheduler is not None:
+        raise InputError("--jobs and --scheduler exclude each other (the Dask cluster decides how many run at once)")
+    items, batch = expand_inputs(args.input)
+    batch = batch or args.scheduler is not None
     smooth = None
     if not args.no_smooth:
         try:
@@ -279,15 +305,36 @@ def run(args: argparse.Namespace) -> int:
         except ValueError:
             raise InputError(f"--smooth-min-cutoff must be > 0 and --smooth-beta >= 0, got "
                              f"{args.smooth_min_cutoff:g} and {args.smooth_beta:g}") from None
-    s = track_file(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir),
+    if batch:
+        return _run_batch(args, items, model_path, smooth)
+    input_ = items[0]
+    s = track_file(input_, model_path=model_path, out_dir=output_dir(input_, args.out_dir),
                    overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps, smooth=smooth,
                    report=args.report, notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
           f"{s['fps_end_to_end']:.0f} fps end to end -> {', '.join(_outputs(s['outputs']))}")
     if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {display_name(args.input)}", file=sys.stderr)
+        print(f"aamtrack run: warning: no face found in any frame of {display_name(input_)}", file=sys.stderr)
     return 0
+
+
+def _run_batch(args, items: list[str], model_path: Path, smooth) -> int:
+    if args.out_dir is None and len(args.input) > 1:
+        raise InputError("several inputs need --out-dir (each input's outputs go to <out-dir>/<name>/)")
+    out_dir = output_dir(args.input[0], args.out_dir)
+    if args.report:
+        from ..io.report import require_matplotlib
+
+        require_matplotlib()
+    options = run_options(model_path=model_path, overlay=args.video, pts=args.pts, report=args.report,
+                          replay=args.realtime, fps=args.fps, smooth=smooth)
+    t0 = time.perf_counter()
+    rows = run_batch(items, out_dir=out_dir, model_path=model_path, options=options,
+                     jobs=args.jobs or default_jobs(), scheduler=args.scheduler, overwrite=args.overwrite,
+                     say=lambda text: print(text, file=sys.stderr, flush=True))
+    print(summary_line(rows, time.perf_counter() - t0, out_dir))
+    return 1 if any(r["status"] == "failed" for r in rows) else 0
 
 
 def _outputs(outputs: dict) -> list[str]:

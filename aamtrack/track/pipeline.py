@@ -45,6 +45,13 @@ def _put(q: queue.Queue, item, stop: threading.Event) -> bool:
     return False
 
 
+def _wait(done: threading.Event) -> None:
+    """Wait until ``done`` is set. (Not ``Thread.join``: a join interrupted by a signal's exception can take the
+    thread for ended while it still runs, and the caller would then close what the thread still uses.)"""
+    while not done.wait(_POLL):
+        pass
+
+
 def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-decode") -> Iterator:
     """Yield the items of ``iterable``, produced ahead in a thread (at most ``depth`` waiting).
 
@@ -52,17 +59,18 @@ def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-dec
     the generator (or an exception in the consumer) stops the thread and waits for it.
     """
     q: queue.Queue = queue.Queue(maxsize=max(1, depth))
-    stop = threading.Event()
+    stop, ended = threading.Event(), threading.Event()
 
     def produce():
         try:
             for item in iterable:
                 if not _put(q, item, stop):
                     return
+            _put(q, _END, stop)
         except BaseException as exc:  # handed to the consumer, raised there
             _put(q, _Failure(exc), stop)
-            return
-        _put(q, _END, stop)
+        finally:
+            ended.set()
 
     thread = threading.Thread(target=produce, name=name, daemon=True)
     thread.start()
@@ -71,7 +79,7 @@ def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-dec
             try:
                 item = q.get(timeout=_POLL)
             except queue.Empty:
-                if not thread.is_alive() and q.empty():  # pragma: no cover - the producer always says why it ended
+                if ended.is_set() and q.empty():  # pragma: no cover - the producer always says why it ended
                     raise RuntimeError("frame reader ended without a reason") from None
                 continue
             if item is _END:
@@ -81,7 +89,7 @@ def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-dec
             yield item
     finally:
         stop.set()
-        thread.join()
+        _wait(ended)
 
 
 class ResultWriter:
@@ -95,19 +103,17 @@ class ResultWriter:
 
     def __init__(self, consume_all: Callable[[Iterator], None], *, depth: int = 64, name: str = "aamtrack-write"):
         self._q: queue.Queue = queue.Queue(maxsize=max(1, depth))
-        self._stop = threading.Event()
+        self._stop, self._ended = threading.Event(), threading.Event()
         self._error: BaseException | None = None
         self._consume_all = consume_all
         self._thread = threading.Thread(target=self._main, name=name, daemon=True)
         self._thread.start()
 
     def _items(self) -> Iterator:
-        while True:
+        while not self._stop.is_set():
             try:
                 item = self._q.get(timeout=_POLL)
             except queue.Empty:
-                if self._stop.is_set():
-                    return
                 continue
             if item is _END:
                 return
@@ -119,6 +125,8 @@ class ResultWriter:
         except BaseException as exc:  # raised in the caller's thread by put()/finish()
             self._error = exc
             self._stop.set()
+        finally:
+            self._ended.set()
 
     def _raise(self) -> None:
         if self._error is not None:
@@ -134,13 +142,13 @@ class ResultWriter:
         """Wait until everything put has been consumed; raise the writer's exception if it failed."""
         self._raise()
         _put(self._q, _END, self._stop)
-        self._thread.join()
+        _wait(self._ended)
         self._raise()
 
     def stop(self) -> None:
         """End the thread now, dropping what it has not consumed (the run failed elsewhere)."""
         self._stop.set()
-        self._thread.join()
+        _wait(self._ended)
 
 
 @dataclass

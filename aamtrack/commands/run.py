@@ -28,7 +28,7 @@ from ..track.benchmark import warmup
 from ..track.events import annotate
 from ..track.replay import realtime
 from ..track.smooth import SmoothConfig, smooth_results
-from ..track.pipeline import run_pipeline
+from ..track.pipeline import grey_frames, run_pipeline
 from ..track.timing import ms_stats
 from ..track.tracker import Tracker
 
@@ -217,7 +217,8 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                 if on_frame is not None:
                     on_frame(1)
 
-            times = run_pipeline(source, results_of, write, on_result=on_result, pipelined=pipelined,
+            frames = source if keep else grey_frames(source)  # grey in the decoding thread when no colour is used
+            times = run_pipeline(frames, results_of, write, on_result=on_result, pipelined=pipelined,
                                  smooth=(lambda s: smooth_results(s, smooth)) if smooth is not None else None,
                                  replay=(lambda f: realtime(f, source.fps)) if replay else None)
             bar.close()

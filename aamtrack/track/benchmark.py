@@ -20,7 +20,7 @@ from ..io.csvout import TrackingCsvWriter
 from ..io.frames import open_frames
 from ..model import load_model
 from .events import annotate
-from .pipeline import run_pipeline
+from .pipeline import grey_frames, run_pipeline
 from .smooth import SmoothConfig, smooth_results
 from .timing import ms_stats, timed
 from .tracker import Tracker
@@ -66,7 +66,7 @@ def bench_one(input_, model_path: Path, size: tuple[int, int], *, max_frames: in
             t_single = time.perf_counter() - t_all
         with open_frames(input_, resize=size) as src, TrackingCsvWriter(Path(tmp) / "p.csv", **csv_args) as w:
             t_all = time.perf_counter()
-            times = run_pipeline(itertools.islice(src, max_frames),
+            times = run_pipeline(grey_frames(itertools.islice(src, max_frames)),
                                  lambda frames: annotate(tracker.track(frames)), w.write,
                                  smooth=lambda results: smooth_results(results, SmoothConfig()))
             t_pipe = time.perf_counter() - t_all

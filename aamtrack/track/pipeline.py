@@ -21,9 +21,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Iterator
 
+from ..io.frames import Frame, gray
 from .timing import timed
 
-__all__ = ["read_ahead", "ResultWriter", "run_pipeline", "PipelineTimes"]
+__all__ = ["read_ahead", "ResultWriter", "run_pipeline", "PipelineTimes", "grey_frames"]
 
 _END = object()
 _POLL = 0.1  # seconds between checks of the other side while a queue is full or empty
@@ -52,23 +53,32 @@ def _wait(done: threading.Event) -> None:
         pass
 
 
-def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-decode") -> Iterator:
-    """Yield the items of ``iterable``, produced ahead in a thread (at most ``depth`` waiting).
+def read_ahead(iterable: Iterable, *, depth: int = 32, chunk: int = 8, name: str = "aamtrack-decode") -> Iterator:
+    """Yield the items of ``iterable``, produced ahead in a thread (at most about ``depth`` waiting).
 
-    An exception raised while producing an item is raised here, at that item's place in the sequence. Closing
-    the generator (or an exception in the consumer) stops the thread and waits for it.
+    Items cross in lists of ``chunk``: one hand-over (a lock and a wake-up, each taking the GIL) per chunk
+    rather than per item. An exception raised while producing an item is raised here, at that item's place in
+    the sequence. Closing the generator (or an exception in the consumer) stops the thread and waits for it.
     """
-    q: queue.Queue = queue.Queue(maxsize=max(1, depth))
+    chunk = max(1, chunk)
+    q: queue.Queue = queue.Queue(maxsize=max(1, depth // chunk))
     stop, ended = threading.Event(), threading.Event()
 
     def produce():
+        items = []
         try:
             for item in iterable:
-                if not _put(q, item, stop):
-                    return
+                items.append(item)
+                if len(items) >= chunk:
+                    if not _put(q, items, stop):
+                        return
+                    items = []
+            if items and not _put(q, items, stop):
+                return
             _put(q, _END, stop)
         except BaseException as exc:  # handed to the consumer, raised there
-            _put(q, _Failure(exc), stop)
+            if not items or _put(q, items, stop):
+                _put(q, _Failure(exc), stop)
         finally:
             ended.set()
 
@@ -86,7 +96,7 @@ def read_ahead(iterable: Iterable, *, depth: int = 32, name: str = "aamtrack-dec
                 return
             if isinstance(item, _Failure):
                 raise item.exc
-            yield item
+            yield from item
     finally:
         stop.set()
         _wait(ended)
@@ -101,8 +111,11 @@ class ResultWriter:
     smoothing can sit in the writer thread) and is called once.
     """
 
-    def __init__(self, consume_all: Callable[[Iterator], None], *, depth: int = 64, name: str = "aamtrack-write"):
-        self._q: queue.Queue = queue.Queue(maxsize=max(1, depth))
+    def __init__(self, consume_all: Callable[[Iterator], None], *, depth: int = 64, chunk: int = 8,
+                 name: str = "aamtrack-write"):
+        self._chunk = max(1, chunk)
+        self._buf: list = []
+        self._q: queue.Queue = queue.Queue(maxsize=max(1, depth // self._chunk))
         self._stop, self._ended = threading.Event(), threading.Event()
         self._error: BaseException | None = None
         self._consume_all = consume_all
@@ -117,7 +130,7 @@ class ResultWriter:
                 continue
             if item is _END:
                 return
-            yield item
+            yield from item
 
     def _main(self) -> None:
         try:
@@ -133,14 +146,20 @@ class ResultWriter:
             raise self._error
 
     def put(self, item) -> None:
+        self._buf.append(item)
+        if len(self._buf) >= self._chunk:
+            self._flush()
+
+    def _flush(self) -> None:
         self._raise()
-        if not _put(self._q, item, self._stop):
+        items, self._buf = self._buf, []
+        if items and not _put(self._q, items, self._stop):
             self._raise()
             raise RuntimeError("result writer stopped")  # pragma: no cover - stop() is only called on failure
 
     def finish(self) -> None:
         """Wait until everything put has been consumed; raise the writer's exception if it failed."""
-        self._raise()
+        self._flush()
         _put(self._q, _END, self._stop)
         _wait(self._ended)
         self._raise()
@@ -149,6 +168,14 @@ class ResultWriter:
         """End the thread now, dropping what it has not consumed (the run failed elsewhere)."""
         self._stop.set()
         _wait(self._ended)
+
+
+def grey_frames(frames: Iterable) -> Iterator:
+    """The frames with their images turned grey ((H, W) uint8; the tracker and the detector take grey images and
+    give the same results: they convert BGR to grey themselves, pixel by pixel). Run in the decoding thread, this
+    takes the conversion off the tracker's thread (and the detector converts once instead of once per try)."""
+    for f in frames:
+        yield Frame(f.index, f.timestamp, None if f.image is None else gray(f.image))
 
 
 @dataclass

@@ -139,3 +139,11 @@ def test_decoder_failing_mid_video_leaves_nothing(tmp_path, folder, model_file, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].endswith("decoder failed at frame 5"), err
     assert not out.exists()
+
+
+def test_grey_frames_give_the_same_rows_as_colour(tmp_path, folder, model_file):
+    # without --video / --report the decoding thread hands the tracker grey frames; with --video, colour ones
+    track_file(str(folder / "clip2.avi"), model_path=model_file, out_dir=tmp_path / "g", progress=False)
+    track_file(str(folder / "clip2.avi"), model_path=model_file, out_dir=tmp_path / "c", progress=False,
+               overlay=True)
+    assert (tmp_path / "g" / "clip2.csv").read_bytes() == (tmp_path / "c" / "clip2.csv").read_bytes()

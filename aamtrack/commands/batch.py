@@ -287,12 +287,15 @@ def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
                 except BaseException as exc:  # a worker that died (killed, out of memory)
                     row = _row(tasks[k], "failed", error=f"worker process failed: {error_text(exc)}")
                 on_row(k, row, bar)
-    except BaseException:
-        for p in list((getattr(pool, "_processes", None) or {}).values()):  # they clean up on SIGINT
-            try:
-                os.kill(p.pid, signal.SIGINT)
-            except OSError:
-                pass
+    except BaseException as exc:
+        # Ctrl-C reaches the workers too (one process group); a stop signal or a failure here is passed on as
+        # SIGINT, on which a worker discards its temporaries, as a single run does
+        if getattr(exc, "signum", None) is not None or not isinstance(exc, KeyboardInterrupt):
+            for p in list((getattr(pool, "_processes", None) or {}).values()):
+                try:
+                    os.kill(p.pid, signal.SIGINT)
+                except OSError:
+                    pass
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     finally:

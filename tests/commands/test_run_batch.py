@@ -147,3 +147,37 @@ def test_grey_frames_give_the_same_rows_as_colour(tmp_path, folder, model_file):
     track_file(str(folder / "clip2.avi"), model_path=model_file, out_dir=tmp_path / "c", progress=False,
                overlay=True)
     assert (tmp_path / "g" / "clip2.csv").read_bytes() == (tmp_path / "c" / "clip2.csv").read_bytes()
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--jobs", "0"], "--jobs 0"),
+    (["--jobs", "2", "--scheduler", "tcp://127.0.0.1:1"], "exclude each other"),
+])
+def test_bad_batch_options_are_one_line(tmp_path, folder, model_file, capsys, args, needle):
+    assert run(folder, "--model", model_file, "--out-dir", tmp_path / "o", *args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_stop_signal_in_a_batch_keeps_finished_inputs_and_leaves_no_half(tmp_path, folder, model_file, capsys,
+                                                                         monkeypatch):
+    import os
+    import signal
+
+    from aamtrack.io.csvout import TrackingCsvWriter
+
+    real_write = TrackingCsvWriter.write
+
+    def write_then_signal(self, result):
+        real_write(self, result)
+        if ".clip1." in self.path.name and self.n_rows == 3:  # (the temporary name of clip1.csv)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(TrackingCsvWriter, "write", write_then_signal)
+    out = tmp_path / "out"
+    assert run(folder, "--model", model_file, "--out-dir", out, "--jobs", 1) == 128 + signal.SIGTERM
+    assert capsys.readouterr().err.strip().endswith("stopped by SIGTERM")
+    files = [f for f in files_below(out) if (out / f).is_file()]
+    assert files == ["clip0/clip0.csv", "clip0/clip0.json"]  # inputs are in name order: broken, clip0, clip1
+    assert len(read_tracking_csv(out / "clip0" / "clip0.csv")["frame"]) == N

@@ -34,6 +34,7 @@ from ..track.tracker import Tracker
 
 log = logging.getLogger(__name__)
 DEFAULT_SMOOTH = SmoothConfig()
+READ_AHEAD_BYTES = 64e6
 
 
 EPILOG = """examples:
@@ -218,7 +219,10 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                     on_frame(1)
 
             frames = source if keep else grey_frames(source)  # grey in the decoding thread when no colour is used
-            times = run_pipeline(frames, results_of, write, on_result=on_result, pipelined=pipelined,
+            # memory: about 64 MB of frames decoded ahead (32 at 640x480, 2 at 4K); with an overlay or a report
+            # each result waiting for the writer holds its image, so few wait
+            depth = int(max(2, min(32, READ_AHEAD_BYTES // max(1, source.width * source.height * 3))))
+            times = run_pipeline(frames, results_of, write, depth=depth, write_depth=depth if keep else 64, on_result=on_result, pipelined=pipelined,
                                  smooth=(lambda s: smooth_results(s, smooth)) if smooth is not None else None,
                                  replay=(lambda f: realtime(f, source.fps)) if replay else None)
             bar.close()

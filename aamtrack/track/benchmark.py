@@ -68,7 +68,8 @@ def bench_one(input_, model_path: Path, size: tuple[int, int], *, max_frames: in
             t_all = time.perf_counter()
             times = run_pipeline(grey_frames(itertools.islice(src, max_frames)),
                                  lambda frames: annotate(tracker.track(frames)), w.write,
-                                 smooth=lambda results: smooth_results(results, SmoothConfig()))
+                                 smooth=lambda results: smooth_results(results, SmoothConfig()),
+                                 depth=int(max(2, min(32, 64e6 // (3 * size[0] * size[1])))))  # ~64 MB ahead
             t_pipe = time.perf_counter() - t_all
     track_med = float(np.median(track_only)) if track_only else float("nan")
     return {

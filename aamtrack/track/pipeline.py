@@ -191,7 +191,7 @@ class PipelineTimes:
 def run_pipeline(frames: Iterable, results_of: Callable[[Iterable], Iterable], write: Callable,
                  *, smooth: Callable[[Iterable], Iterable] | None = None, on_result: Callable | None = None,
                  replay: Callable[[Iterable], Iterable] | None = None, depth: int = 32,
-                 pipelined: bool = True) -> PipelineTimes:
+                 write_depth: int = 64, pipelined: bool = True) -> PipelineTimes:
     """Run ``results_of(frames)`` (the tracker) in this thread between a reader and a writer thread.
 
     Parameters
@@ -202,7 +202,8 @@ def run_pipeline(frames: Iterable, results_of: Callable[[Iterable], Iterable], w
     smooth : optional stream filter applied in the writer thread (One Euro smoothing)
     on_result : called in this thread with each raw result (counts, progress bar)
     replay : optional filter on the frames in this thread (``--realtime``: its clock is the tracker's demand)
-    depth : queue length between stages, in frames
+    depth : frames decoded ahead at most (about: they cross in chunks of up to 8, a quarter of ``depth``)
+    write_depth : results waiting for the writer at most (about; keep it small when each holds an image)
     pipelined : False runs every stage in this thread (the single-thread reference; same outputs)
     """
     times = PipelineTimes()
@@ -229,8 +230,8 @@ def run_pipeline(frames: Iterable, results_of: Callable[[Iterable], Iterable], w
         consume_all(counted(results_of(stream)))
         return times
 
-    ahead = read_ahead(decoded, depth=depth)
-    writer = ResultWriter(consume_all, depth=2 * depth)
+    ahead = read_ahead(decoded, depth=depth, chunk=max(1, min(8, depth // 4)))
+    writer = ResultWriter(consume_all, depth=write_depth, chunk=max(1, min(8, write_depth // 4)))
     try:
         stream = ahead if replay is None else replay(ahead)
         for res in results_of(stream):

@@ -173,8 +173,10 @@ def error_text(exc: BaseException) -> str:
 
 def run_task(task: dict, on_frame=None) -> dict:
     """Track one input of a batch (see the module docstring); returns its ``batch.csv`` row."""
+    from ..track.pipeline import keep_freed_memory
     from .run import track_file
 
+    keep_freed_memory()  # on Dask workers too (a worker process of --jobs has it from its parent already)
     if not task["overwrite"]:
         done = finished_summary(task)
         if done is not None:

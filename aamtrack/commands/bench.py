@@ -12,6 +12,7 @@ from ..io.frames import open_frames
 from ..io.summary import write_summary_json
 from ..models import default_model_path
 from ..track.benchmark import format_table, run_bench
+from ..track.pipeline import keep_freed_memory
 
 
 def register(sub) -> None:
@@ -60,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     sizes = _sizes(args.sizes)
     with open_frames(args.input):  # a bad input fails here, before the models' warm-up
         pass
+    keep_freed_memory()  # as aamtrack run does
     models = args.model or [default_model_path("3d"), default_model_path("2d")]
     rows = run_bench(args.input, models, sizes, max_frames=args.frames, threads=args.threads)
     print(f"machine: {platform.node()} {platform.machine()} {_cpu_name()}, python {platform.python_version()}")

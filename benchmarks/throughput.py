@@ -16,7 +16,8 @@ repeated (``--repeats``), medians reported:
   for the stage medians before and after;
 - dlib's 68-point predictor tracking from the previous frame's landmarks (``peer_runners.dlib_tracking``: HOG
   detection only when lost), run the same way: a process that decodes the video (OpenCV), finds the landmarks
-  and writes a CSV of them (frame, success, x_0..x_67, y_0..y_67); one thread, as dlib's API is used;
+  and writes a CSV of them (frame, success, x_0..x_67, y_0..y_67); one thread, as dlib's API is used; once as
+  is and once with the allocator setting ``aamtrack run`` makes (``keep_freed_memory``);
 - the folder with ``--jobs 1`` and ``--jobs 2`` (``--overwrite``), the ratio of their times; then a re-run
   without ``--overwrite`` must skip all 8; with ``--dask``, the folder through ``--scheduler`` on a LocalCluster
   of 2 worker processes, its CSVs compared byte for byte with those of ``--jobs``.
@@ -93,10 +94,17 @@ def make_data(work: Path, source: Path, loops: int) -> tuple[Path, Path]:
 
 
 # -- dlib, run as a process of its own ------------------------------------------------------------------------
-def dlib_worker(video: str, out_csv: str) -> int:
-    """Decode ``video``, track it with dlib (seeded from the previous frame), write the landmarks as CSV."""
+def dlib_worker(video: str, out_csv: str, tuned: bool = False) -> int:
+    """Decode ``video``, track it with dlib (seeded from the previous frame), write the landmarks as CSV.
+    ``tuned``: with the allocator setting ``aamtrack run`` uses (``keep_freed_memory``), for a like-for-like
+    figure."""
     import cv2
     from peer_runners import dlib_tracking
+
+    if tuned:
+        from aamtrack.track.pipeline import keep_freed_memory
+
+        keep_freed_memory()
 
     cap = cv2.VideoCapture(video)
 
@@ -147,7 +155,7 @@ def median_of(dicts: list[dict]) -> dict:
 
 def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, with_dlib: bool) -> dict:
     n_frames = None
-    runs = {"aamtrack": [], "dlib": [], "before": []}
+    runs = {"aamtrack": [], "dlib": [], "dlib_mallopt": [], "before": []}
     stages = {"aamtrack": [], "before": []}
     env_before = {"PYTHONPATH": str(before)} if before else None
     if before:  # numba compiles that checkout's kernels on its first run: not timed
@@ -164,6 +172,9 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
                                      str(work / "dlib.csv")])
             runs["dlib"].append(t)
             dlib_info = json.loads(proc.stdout.strip().splitlines()[-1])
+            t, _ = timed_process([sys.executable, str(Path(__file__).resolve()), "--dlib-worker", str(long_video),
+                                  str(work / "dlib.csv"), "--dlib-tuned"])
+            runs["dlib_mallopt"].append(t)
         if before:
             t, _ = timed_process(aamtrack_cmd(long_video, "--out-dir", work / "run_before"), env=env_before)
             runs["before"].append(t)
@@ -177,6 +188,7 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
     out["stage_ms"] = {k: median_of(v) for k, v in stages.items() if v}
     if runs["dlib"]:
         out["ratio_vs_dlib"] = statistics.median(runs["dlib"]) / statistics.median(runs["aamtrack"])
+        out["ratio_vs_dlib_mallopt"] = statistics.median(runs["dlib_mallopt"]) / statistics.median(runs["aamtrack"])
     return out
 
 
@@ -228,9 +240,10 @@ def main(argv=None) -> int:
     p.add_argument("--dask", action="store_true", help="also the folder through a Dask LocalCluster (2 workers)")
     p.add_argument("--json", type=Path)
     p.add_argument("--dlib-worker", nargs=2, metavar=("VIDEO", "CSV"), help=argparse.SUPPRESS)
+    p.add_argument("--dlib-tuned", action="store_true", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.dlib_worker:
-        return dlib_worker(*a.dlib_worker)
+        return dlib_worker(*a.dlib_worker, tuned=a.dlib_tuned)
     long_video, folder = make_data(a.work, a.video, a.loops)
     result = {"machine": machine_name(), "load_before": os.getloadavg(), "repeats": a.repeats}
     print(f"machine: {result['machine']}; load average {result['load_before'][0]:.2f}")
@@ -242,6 +255,8 @@ def main(argv=None) -> int:
         if "dlib_fps" in L:
             print(f"  dlib seeded:  {L['dlib_fps']:.0f} fps (median {L['dlib_median_s']:.2f} s); aamtrack "
                   f"{L['ratio_vs_dlib']:.2f}x dlib; dlib {L['dlib']}")
+            print(f"  dlib seeded, same allocator setting: {L['dlib_mallopt_fps']:.0f} fps; aamtrack "
+                  f"{L['ratio_vs_dlib_mallopt']:.2f}x")
         if "before_fps" in L:
             print(f"  before ({a.before}): {L['before_fps']:.0f} fps (median {L['before_median_s']:.2f} s)")
         for k, v in L["stage_ms"].items():

@@ -87,7 +87,7 @@ def output_names(items: list[str]) -> list[str]:
     for s in stems:
         count[s.lower()] = count.get(s.lower(), 0) + 1
     names = []
-    for item, stem in zip(items, stems):
+    for item, stem in zip(items, stems, strict=True):
         if count[stem.lower()] > 1:
             digest = hashlib.sha1(os.fsencode(os.path.abspath(item))).hexdigest()[:8]
             stem = f"{stem[:_MAX_NAME - 9]}_{digest}"
@@ -365,7 +365,7 @@ def run_batch(items: list[str], *, out_dir: Path, model_path: Path, options: dic
     names = output_names(items)
     tasks = [{"input": item if scheduler is None else os.path.abspath(item), "input_abs": os.path.abspath(item),
               "name": name, "out_dir": str(out_abs / name), "model_path": str(Path(model_path).resolve()),
-              "options": options, "overwrite": overwrite} for item, name in zip(items, names)]
+              "options": options, "overwrite": overwrite} for item, name in zip(items, names, strict=True)]
     rows: list[dict | None] = [None] * len(tasks)
     todo = list(range(len(tasks)))
     if scheduler is None:  # the outputs are visible here: skip finished inputs without starting workers

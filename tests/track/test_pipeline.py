@@ -123,3 +123,13 @@ def test_result_writer_reports_its_failure_on_put():
             w.put(k)
     w.stop()
     assert not _threads()
+
+
+def test_keep_freed_memory_takes_on_glibc():
+    import platform
+
+    from aamtrack.track.pipeline import keep_freed_memory
+
+    if platform.libc_ver()[0] != "glibc":
+        pytest.skip("mallopt is glibc's")
+    assert keep_freed_memory() is True  # both settings accepted by mallopt

@@ -174,12 +174,14 @@ def keep_freed_memory(*, trim_mb: int = 256, mmap_mb: int = 32) -> bool:
     """Ask glibc's allocator to keep freed memory for reuse instead of giving it back to the system at once.
 
     Every frame allocates and frees the same few arrays (the crop, its feature levels, the search's
-    temporaries: hundreds of kB each). By default glibc returns such blocks to the system (``munmap``, or a
-    trim of the heap's top) as soon as they are freed, and the next frame faults the pages in again: on this
-    project's VM that cost about a quarter of a run's time (cap12 at 640x480, 8022 frames, one thread: 17.9 ->
-    13.9 s; system time 4.9 -> 1.8 s). With this, up to ``trim_mb`` MB of freed heap are kept, and blocks below
-    ``mmap_mb`` MB come from the heap. Process-wide, so the command line calls it, not the library; a no-op
-    (False) where the C library has no ``mallopt`` (not glibc)."""
+    temporaries: hundreds of kB each). glibc may return such blocks to the system (``munmap``, or a trim of the
+    heap's top) as soon as they are freed, and the next frame then faults the pages in again. Measured on this
+    project's shared VM (cap12 at 640x480, 8022 frames, ``track_file`` in one thread, 3 pairs of runs): 21.1,
+    20.9, 18.5 s without, 13.5, 16.0, 13.1 s with, system time 3.8-5.8 s against 0.7-3.2 s; the gain depends
+    on the machine's load and was not seen in every comparison (see benchmarks/throughput.py). With this, up
+    to ``trim_mb`` MB of freed heap are kept, and blocks below ``mmap_mb`` MB come from the heap. Process-wide,
+    so the command line calls it, not the library; a no-op (False) where the C library has no ``mallopt``
+    (not glibc)."""
     import ctypes
     import ctypes.util
 

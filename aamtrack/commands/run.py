@@ -15,6 +15,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ..errors import InputError
+from .batch import default_jobs, expand_inputs, run_batch, run_options, summary_line
 from ..io.csvout import TrackingCsvWriter
 from ..io.atomic import OutputSet
 from ..io.frames import display_name, open_frames
@@ -27,11 +28,13 @@ from ..track.benchmark import warmup
 from ..track.events import annotate
 from ..track.replay import realtime
 from ..track.smooth import SmoothConfig, smooth_results
-from ..track.timing import ms_stats, timed
+from ..track.pipeline import grey_frames, keep_freed_memory, run_pipeline
+from ..track.timing import ms_stats
 from ..track.tracker import Tracker
 
 log = logging.getLogger(__name__)
 DEFAULT_SMOOTH = SmoothConfig()
+READ_AHEAD_BYTES = 64e6
 
 
 EPILOG = """examples:
@@ -40,6 +43,8 @@ EPILOG = """examples:
   aamtrack run 'frames/*.png' --fps 30 --pts      a glob of images (quoted), one .pts per tracked frame
   aamtrack run clip.mp4 --kind 2d --no-smooth     the 2D model, raw (unsmoothed) landmarks
   aamtrack -v run clip.mp4                        log detections, re-detections and why frames were lost
+  aamtrack run videos/ --out-dir out --jobs 2     every video in videos/, two at a time; out/batch.csv
+  aamtrack run 'day*/*.mp4' --scheduler tcp://head:8786 --out-dir /shared/out   on a Dask cluster
 
 outputs (in --out-dir, default <input>_aamtrack/ next to the input):
   <name>.csv            one row per frame: status, confidence, pose, 68 landmarks (and 3D points, units)
@@ -47,6 +52,12 @@ outputs (in --out-dir, default <input>_aamtrack/ next to the input):
   <name>_overlay.webm   with --video (.mp4 where OpenCV has an H.264 encoder; mp4v .mp4 as a last resort)
   <name>_pts/           with --pts: one iBUG .pts file per tracked frame
   report.html           with --report: plots, lost stretches with thumbnails, summary (needs matplotlib)
+
+a batch (several inputs, or a folder / glob of videos): each input's outputs in <out-dir>/<name>/ (its safe
+stem; inputs sharing a stem get a hash of their path appended), and <out-dir>/batch.csv: input, frames,
+tracked, lost, fps, status (done / skipped / failed), error. A failed input does not stop the others; the exit
+status is 1 if any failed. Inputs finished by an earlier run with the same model and options are skipped
+unless --overwrite. Several arguments need --out-dir.
 
 smoothing: landmarks and pose pass through a One Euro filter (Casiez et al., CHI 2012), reset on every
 detection and after lost frames. Lower --smooth-beta smooths more and lags more on slow motion; see README."""
@@ -57,8 +68,19 @@ def register(sub) -> None:
                        description="Track the largest face in a recorded video (or a folder / glob of images read\n"
                                    "in name order) and write one CSV row per frame plus a JSON summary.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", help="video file, folder of images, or a quoted glob such as 'frames/*.png'")
+    p.add_argument("input", nargs="+",
+                   help="video file, folder of images, or a quoted glob such as 'frames/*.png'; several, or a "
+                        "folder / glob of videos, make a batch (outputs in <out-dir>/<name>/, see below)")
     model_and_output_arguments(p)
+    b = p.add_argument_group("many inputs (a batch)")
+    b.add_argument("--jobs", type=int, metavar="N",
+                   help=f"track N inputs at once in worker processes (default: the number of cores, "
+                        f"{default_jobs()} here)")
+    b.add_argument("--scheduler", metavar="ADDRESS",
+                   help="send the inputs to a Dask distributed scheduler (tcp://host:8786), one task per input; the "
+                        "workers write to --out-dir, which they must share (pip install 'aamtrack[dask]')")
+    b.add_argument("--overwrite", action="store_true",
+                   help="redo inputs already finished with the same model and options (default: skip them)")
     p.add_argument("--video", action="store_true",
                    help="also write an overlay video: mesh, landmarks, pose axes, frame number, status, confidence")
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per tracked frame")
@@ -109,13 +131,19 @@ def output_dir(input_: str, out_dir: Path | None) -> Path:
 
 def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = False, pts: bool = False,
                replay: bool = False, fps: float | None = None, progress: bool = True,
-               smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None) -> dict:
+               smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None,
+               name: str | None = None, pipelined: bool = True, on_frame=None, extra: dict | None = None,
+               tracker: Tracker | None = None) -> dict:
     """Track one input and write its outputs; returns the summary. The input and the output folder are checked
     before the work; every output is written under a temporary name and all are committed together at the
     end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were).
 
     smooth: One Euro smoothing of the results (None: raw tracker output). report: also write report.html
-    (needs matplotlib). notify: called with a one-line message while numba compiles on a first run."""
+    (needs matplotlib). notify: called with a one-line message while numba compiles on a first run.
+    name: stem of the output files (default: the input's, see :func:`output_base`). pipelined: decode ahead and
+    write in threads (False: every stage in this thread; the same outputs). on_frame: called with 1 per frame
+    (a batch's overall progress). extra: more entries for the summary (a batch's options record). tracker: a
+    Tracker for ``model_path`` already made and warmed up (a batch worker keeps one)."""
     t_start = time.perf_counter()
     if report:
         from ..io.report import require_matplotlib
@@ -124,27 +152,31 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     source = open_frames(input_, fps=fps)
     with source, OutputSet(out_dir) as outputs:
         summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
-                         pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify)
+                         pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify,
+                         name=name, pipelined=pipelined, on_frame=on_frame, extra=extra or {}, tracker=tracker)
         outputs.commit()
     return summary
 
 
 def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
-           pts: bool, replay: bool, progress: bool, smooth, report: bool, notify) -> dict:
-    model = load_model(model_path)
-    tracker = Tracker(model)
-    outputs.prepare()
-    t_warm = _warm_up(tracker, notify)
+           pts: bool, replay: bool, progress: bool, smooth, report: bool, notify, name, pipelined: bool, on_frame,
+           extra: dict, tracker) -> dict:
+    if tracker is None:
+        tracker = Tracker(load_model(model_path))
+        outputs.prepare()
+        t_warm = _warm_up(tracker, notify)
+    else:
+        outputs.prepare()
+        t_warm = 0.0
+    model = tracker.model
     out_dir = outputs.folder
-    stem = output_base(input_)[1]
+    stem = name or output_base(input_)[1]
     csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
     pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
     sm = model.shape
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
-    t_decode, per_frame = [], {"detect": [], "pyramid": [], "search": [], "output": []}
-    frames = realtime(timed(source, t_decode), source.fps) if replay else timed(source, t_decode)
-    t_first = None
+    per_frame = {"detect": [], "pyramid": [], "search": []}
     rep = None
     if report:
         from ..io.report import ReportBuilder
@@ -161,13 +193,12 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                        desc=display_name(stem))
             images = {}
             keep = ov is not None or rep is not None
-            stream = annotate(tracker.track(_remember(frames, images) if keep else frames),
-                              min_confidence=tracker.config.min_confidence)
-            if smooth is not None:
-                stream = smooth_results(stream, smooth)
-            for res in stream:
-                t_first = t_first or time.perf_counter()
-                t = time.perf_counter()
+
+            def results_of(frames):
+                return annotate(tracker.track(_remember(frames, images) if keep else frames),
+                                min_confidence=tracker.config.min_confidence)
+
+            def write(res):  # the writer thread: CSV row, overlay frame, report, .pts
                 csv_w.write(res)
                 image = images.pop(res.frame, None) if keep else None
                 if ov is not None:
@@ -176,13 +207,24 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                     rep.add(res, image)
                 if pts and res.success:
                     write_pts_per_frame(pts_dir, res)
-                per_frame["output"].append(time.perf_counter() - t)
+
+            def on_result(res):  # the tracker's thread
                 for k in ("detect", "pyramid", "search"):
                     if k in res.timings:
                         per_frame[k].append(res.timings[k])
                 counts["read"] += 1
                 counts[res.status] += 1
                 bar.update(1)
+                if on_frame is not None:
+                    on_frame(1)
+
+            frames = source if keep else grey_frames(source)  # grey in the decoding thread when no colour is used
+            # memory: about 64 MB of frames decoded ahead (32 at 640x480, 2 at 4K); with an overlay or a report
+            # each result waiting for the writer holds its image, so few wait
+            depth = int(max(2, min(32, READ_AHEAD_BYTES // max(1, source.width * source.height * 3))))
+            times = run_pipeline(frames, results_of, write, depth=depth, write_depth=depth if keep else 64, on_result=on_result, pipelined=pipelined,
+                                 smooth=(lambda s: smooth_results(s, smooth)) if smooth is not None else None,
+                                 replay=(lambda f: realtime(f, source.fps)) if replay else None)
             bar.close()
         except BaseException:
             if ov is not None:
@@ -196,19 +238,23 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
     wall = time.perf_counter() - t_start
 
     track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
+    t_first = times.t_first
     summary = {
         "input": str(input_), "model": str(model_path), "model_kind": sm.kind,
         "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
         "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
         "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
         "realtime": replay, "video_fps": source.fps,
-        "timing_ms": {"decode": ms_stats(t_decode), **{k: ms_stats(v) for k, v in per_frame.items()},
-                      "track": ms_stats(track_times)},
+        "timing_ms": {"decode": ms_stats(times.decode), **{k: ms_stats(v) for k, v in per_frame.items()},
+                      "output": ms_stats(times.output), "track": ms_stats(track_times)},
+        "pipelined": pipelined,
+        "thread_cpu_s": times.cpu_s,
         "start_to_first_result_s": (t_first - t_start) if t_first else None, "warmup_s": t_warm,
         "smoothing": None if smooth is None else {"filter": "one_euro", "min_cutoff_hz": smooth.min_cutoff,
                                                   "beta": smooth.beta, "d_cutoff_hz": smooth.d_cutoff},
         "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},
+        **extra,
     }
     if ov is not None:
         summary["outputs"]["video"] = str(video_path)
@@ -251,7 +297,14 @@ def _remember(frames, images: dict):
 
 
 def run(args: argparse.Namespace) -> int:
+    keep_freed_memory()  # fewer page faults per frame (see there); batch workers inherit it
     model_path = args.model or default_model_path(args.kind)
+    if args.jobs is not None and not 1 <= args.jobs <= 1024:
+        raise InputError(f"--jobs {args.jobs}: expected a number of worker processes, 1 or more")
+    if args.jobs is not None and args.scheduler is not None:
+        raise InputError("--jobs and --scheduler exclude each other (the Dask cluster decides how many run at once)")
+    items, batch = expand_inputs(args.input)
+    batch = batch or args.scheduler is not None
     smooth = None
     if not args.no_smooth:
         try:
@@ -259,15 +312,36 @@ def run(args: argparse.Namespace) -> int:
         except ValueError:
             raise InputError(f"--smooth-min-cutoff must be > 0 and --smooth-beta >= 0, got "
                              f"{args.smooth_min_cutoff:g} and {args.smooth_beta:g}") from None
-    s = track_file(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir),
+    if batch:
+        return _run_batch(args, items, model_path, smooth)
+    input_ = items[0]
+    s = track_file(input_, model_path=model_path, out_dir=output_dir(input_, args.out_dir),
                    overlay=args.video, pts=args.pts, replay=args.realtime, fps=args.fps, smooth=smooth,
                    report=args.report, notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
           f"{s['fps_end_to_end']:.0f} fps end to end -> {', '.join(_outputs(s['outputs']))}")
     if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {display_name(args.input)}", file=sys.stderr)
+        print(f"aamtrack run: warning: no face found in any frame of {display_name(input_)}", file=sys.stderr)
     return 0
+
+
+def _run_batch(args, items: list[str], model_path: Path, smooth) -> int:
+    if args.out_dir is None and len(args.input) > 1:
+        raise InputError("several inputs need --out-dir (each input's outputs go to <out-dir>/<name>/)")
+    out_dir = output_dir(args.input[0], args.out_dir)
+    if args.report:
+        from ..io.report import require_matplotlib
+
+        require_matplotlib()
+    options = run_options(model_path=model_path, overlay=args.video, pts=args.pts, report=args.report,
+                          replay=args.realtime, fps=args.fps, smooth=smooth)
+    t0 = time.perf_counter()
+    rows = run_batch(items, out_dir=out_dir, model_path=model_path, options=options,
+                     jobs=args.jobs or default_jobs(), scheduler=args.scheduler, overwrite=args.overwrite,
+                     say=lambda text: print(text, file=sys.stderr, flush=True))
+    print(summary_line(rows, time.perf_counter() - t0, out_dir))
+    return 1 if any(r["status"] == "failed" for r in rows) else 0
 
 
 def _outputs(outputs: dict) -> list[str]:

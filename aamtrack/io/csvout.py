@@ -108,7 +108,49 @@ class TrackingCsvWriter(TemporaryOutput):
         except OSError as exc:
             raise output_error(self.path, exc) from None
         self._writer = csv.writer(self._handle, lineterminator="\n")
+        self._line = self._line_format()
         self._write_row(self.columns)
+
+    def _line_format(self) -> str:
+        """The %-format of a successful row's fields after ``status``: one C-level pass per row, the same text as
+        ``format(v, spec)`` field by field (0.05 instead of 0.08 ms for a 3D row)."""
+        n = self.n_landmarks
+        specs = ["%.4f"] + ["%.5f"] * 3 + ["%.3f"] * 2 + ["%.6g"] + ["%.3f"] * (2 * n)
+        if self.with_3d:
+            specs += ["%.5f"] * (3 * n)
+        specs += ["%.5f"] * (self.n_anim + self.n_shape)
+        return ",".join(specs) + "\n"
+
+    def _fast_line(self, result) -> str | None:
+        """The CSV line of a successful frame whose values are all finite, or None (then ``_row`` writes it,
+        with its checks and empty fields for NaN)."""
+        if self.leading or not result.success:
+            return None
+        landmarks = np.asarray(result.landmarks, dtype=np.float64)
+        if landmarks.shape != (self.n_landmarks, 2):
+            return None
+        parts = [np.asarray([result.confidence], dtype=np.float64), np.asarray(result.rotation, dtype=np.float64),
+                 np.asarray(result.translation, dtype=np.float64), np.asarray([result.scale], dtype=np.float64),
+                 landmarks.T.ravel()]
+        if self.with_3d:
+            if result.landmarks3d is None:
+                return None
+            l3 = np.asarray(result.landmarks3d, dtype=np.float64)
+            if l3.shape != (self.n_landmarks, 3):
+                return None
+            parts.append(l3.T.ravel())
+        anim = np.asarray(result.anim_params, dtype=np.float64).ravel()
+        shape = np.asarray(result.shape_params, dtype=np.float64).ravel()
+        if len(anim) != self.n_anim or len(shape) != self.n_shape or len(parts[1]) != 3 or len(parts[2]) != 2:
+            return None
+        values = np.concatenate(parts + [anim, shape])
+        if not np.isfinite(values).all():
+            return None
+        status = str(result.status)
+        if "," in status or '"' in status:  # pragma: no cover - statuses are plain words
+            return None
+        return f"{int(result.frame)},{format(float(result.timestamp), '.4f')},1,0,{status}," + (
+            self._line % tuple(values.tolist()))
 
     def _row(self, result) -> list[str]:
         status = str(result.status)
@@ -147,8 +189,37 @@ class TrackingCsvWriter(TemporaryOutput):
             raise ValueError(f"{self.path}: writer is closed")
         if len(leading) != len(self.leading):
             raise ValueError(f"{self.path}: {len(leading)} leading values for columns {self.leading}")
-        self._write_row([str(v) for v in leading] + self._row(result))
+        line = self._fast_line(result)
+        if line is None:
+            self._write_row([str(v) for v in leading] + self._row(result))
+        else:
+            try:
+                self._handle.write(line)
+            except OSError as exc:  # as _write_row: nothing half-written stays behind
+                self.abort()
+                raise output_error(self.path, exc) from None
         self.n_rows += 1
+
+    def write_many(self, results) -> None:
+        """Append the rows of several results (no leading columns), formatted together, written at once."""
+        if self._handle is None:
+            raise ValueError(f"{self.path}: writer is closed")
+        if self.leading:
+            raise ValueError(f"{self.path}: write_many takes no leading values; use write()")
+        lines = []
+        for res in results:
+            line = self._fast_line(res)
+            if line is None:
+                buf = _LineBuffer()
+                csv.writer(buf, lineterminator="\n").writerow(self._row(res))
+                line = buf.text
+            lines.append(line)
+        try:
+            self._handle.write("".join(lines))
+        except OSError as exc:
+            self.abort()
+            raise output_error(self.path, exc) from None
+        self.n_rows += len(lines)
 
     def _write_row(self, row: list[str]) -> None:
         try:
@@ -162,6 +233,16 @@ class TrackingCsvWriter(TemporaryOutput):
 
     def _closed(self) -> None:
         logger.info("%s: %d rows", self.path, self.n_rows)
+
+
+class _LineBuffer:
+    """File-like sink for one csv.writer row."""
+
+    def __init__(self):
+        self.text = ""
+
+    def write(self, text: str) -> None:
+        self.text += text
 
 
 def read_tracking_csv(path: str | os.PathLike) -> dict[str, np.ndarray]:

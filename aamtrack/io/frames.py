@@ -28,11 +28,16 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["Frame", "FrameSource", "VideoFrames", "ImageFrames", "open_frames", "gray", "IMAGE_SUFFIXES",
+           "VIDEO_SUFFIXES", "natural_key",
            "opencv_path", "read_image", "display_name"]
 
 logger = logging.getLogger(__name__)
 
 #: Image file suffixes read as frames (run) and as training images (train): the formats OpenCV decodes.
+#: Video file suffixes a folder or glob of a batch run gives as inputs, one per file (anything else OpenCV's
+#: FFmpeg backend reads is still read when named on the command line).
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv", ".flv", ".3gp", ".ts",
+                  ".mts", ".m2ts", ".ogv")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pbm", ".jp2")
 DEFAULT_FPS = 25.0
 MIN_FPS, MAX_FPS = 1e-3, 1e5  # frame rates outside are typos, not cameras
@@ -108,7 +113,7 @@ def _check_fps(fps) -> float:
     return value
 
 
-def _natural_key(text: str) -> list:
+def natural_key(text: str) -> list:
     """Sort key putting ``frame2`` before ``frame10`` (digits compare as numbers, letters case-insensitively)."""
     parts = re.split(r"(\d+)", text)
     return [int(p) if k % 2 else p.lower() for k, p in enumerate(parts)]
@@ -407,7 +412,7 @@ class ImageFrames(FrameSource):
 
 def _image_files(folder: Path) -> list[Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
-    return sorted(files, key=lambda p: _natural_key(p.name))
+    return sorted(files, key=lambda p: natural_key(p.name))
 
 
 def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=None) -> FrameSource:
@@ -446,7 +451,7 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
         if not files:
             detail = f" ({len(matches)} matches, none an image file)" if matches else ""
             raise InputError(f"{text}: pattern matches no images{detail}")
-        files.sort(key=lambda p: _natural_key(str(p)))
+        files.sort(key=lambda p: natural_key(str(p)))
         return ImageFrames(files, name=text, fps=fps, resize=resize)
     if path.is_dir():
         files = _image_files(path)

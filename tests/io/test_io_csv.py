@@ -150,3 +150,46 @@ def test_read_errors(tmp_path):
     (tmp_path / "empty.csv").write_text("")
     with pytest.raises(InputError, match="empty"):
         read_tracking_csv(tmp_path / "empty.csv")
+
+
+def _slow_line(writer, result) -> str:
+    """The row as the field-by-field path (the csv module) writes it: the reference for the fast path."""
+    import io
+
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(writer._row(result))
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("with_3d", [False, True])
+def test_fast_rows_are_the_same_text_as_field_by_field(tmp_path, with_3d):
+    rng = np.random.default_rng(SEED)
+    results = make_results(40, rng, with_3d=with_3d)
+    # values that exercise the formats: tiny, huge, negative zero, many digits
+    r = results[1]
+    r.landmarks[0] = (-0.0, 1e-9)
+    r.landmarks[1] = (123456.78949, -0.0005)
+    results[2] = FrameResult(**{**r.__dict__, "scale": 1.23456789e-7, "frame": 2})
+    with TrackingCsvWriter(tmp_path / "a.csv", anim_names=ANIM, shape_names=SHAPE, with_3d=with_3d) as w:
+        n_fast = 0
+        for res in results:
+            fast = w._fast_line(res)
+            if res.success:
+                assert fast == _slow_line(w, res)
+                n_fast += 1
+            else:
+                assert fast is None  # frames without a face take the general path
+        assert n_fast == sum(r.success for r in results) > 10
+        w.abort()
+
+
+def test_nan_rows_fall_back_to_empty_fields_and_write_many_matches_write(tmp_path):
+    results = make_results(24, np.random.default_rng(SEED), with_3d=True)
+    results[1].landmarks[5, 0] = np.nan  # the general path writes it as an empty field
+    one = _write(tmp_path / "one.csv", results, with_3d=True).path
+    with TrackingCsvWriter(tmp_path / "many.csv", anim_names=ANIM, shape_names=SHAPE, with_3d=True) as w:
+        w.write_many(results[:10])
+        w.write_many(results[10:])
+    assert w.n_rows == 24
+    assert (tmp_path / "many.csv").read_bytes() == one.read_bytes()
+    assert read_tracking_csv(one)["x_5"][1] != read_tracking_csv(one)["x_5"][1]  # NaN read back

@@ -60,7 +60,8 @@ class TrainConfig:
     on video). forehead_cut: 3D only, texture triangles above this model y (hairline) are left out.
     n_pca: 2D only, the most PCA shape modes kept (97% of the variance at most).
     n_corrective: 3D only, corrective shape units learned from what Candide cannot fit of the labelled points
-    (``mesh.corrective``); 0 for the plain Candide model."""
+    (``mesh.corrective``); 0 for the plain Candide model. 20 fit the labels more closely than the 2D model (2.27 vs
+    2.33 px on helen_train) and measured better than 12 on cap12 (3D NME 0.0279 vs 0.0302 raw), equal on stills."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"

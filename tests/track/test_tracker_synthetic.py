@@ -134,3 +134,46 @@ def test_loss_reasons(synth_model):
     grown = p.copy()
     grown[3] *= np.exp(cfg.max_rescale + 0.05)
     assert "rescaled" in tracker.loss_reason(replace(good, p=grown), (220, 220), p)
+
+
+def test_upright_detection_of_low_confidence_also_tries_the_turned_frames(synth_model):
+    """A face rolled 15 degrees is found by Haar both upright and in the frame turned by +30: with the retry on,
+    detect_and_fit keeps the more confident of the two detections' fits; with it off, the upright one."""
+    from dataclasses import replace as dc_replace
+
+    ref = synth.face_layout()
+    pts = synth.project2d(ref, np.radians(15), 130, 160, 120)
+    image = synth.render(ref, pts, (320, 240))
+    never = Tracker(synth_model, config=dc_replace(Tracker(synth_model).config, turned_retry_below=0.0))
+    always = Tracker(synth_model, config=dc_replace(never.config, turned_retry_below=1.01))
+    upright = never.detector.find(image)
+    turned = (never.detector.detect_all(image, 30.0)[0], 30.0)
+    assert upright is not None and upright[1] == 0.0  # the premise: found upright, and turned too
+    fit_up, _ = never.fit_detection(image, upright)
+    fit_turned, _ = never.fit_detection(image, turned)
+    res_never, t_never = never.detect_and_fit(image)
+    res_always, t_always = always.detect_and_fit(image)
+    assert res_never.confidence == fit_up.confidence
+    assert res_always.confidence == max(fit_up.confidence, fit_turned.confidence)
+    assert t_always["detect"] > t_never["detect"]  # the turned frames were searched and timed as detection
+    assert np.linalg.norm(res_always.landmarks - pts, axis=1).mean() < 2.0  # on the face, within 2 px
+
+
+def test_a_more_confident_turned_fit_replaces_the_upright_one(synth_model):
+    """The selection itself: with the upright fit's confidence marked down (a subclass), the turned detection's
+    fit is kept, and only when the retry is on."""
+    from dataclasses import replace as dc_replace
+
+    class UprightDoubted(Tracker):
+        def fit_detection(self, image, found, shape_params=None):
+            res, t = super().fit_detection(image, found, shape_params)
+            return (dc_replace(res, confidence=0.001) if found[1] == 0.0 else res), t
+
+    ref = synth.face_layout()
+    image = synth.render(ref, synth.project2d(ref, np.radians(15), 130, 160, 120), (320, 240))
+    on = UprightDoubted(synth_model)
+    off = UprightDoubted(synth_model, config=dc_replace(on.config, turned_retry_below=0.0))
+    turned_fit, _ = on.fit_detection(image, (on.detector.detect_all(image, 30.0)[0], 30.0))
+    assert turned_fit.confidence > 0.001
+    assert on.detect_and_fit(image)[0].confidence == turned_fit.confidence
+    assert off.detect_and_fit(image)[0].confidence == 0.001

@@ -88,16 +88,27 @@ def _bumps(t: np.ndarray, rng: np.random.Generator, *, rate: float, width: float
     return out
 
 
+class _Weights:
+    """(n_frames, n_expr) expression weights being built: ``add(name, curve)`` (names the model lacks are
+    skipped), then ``done()`` fades everything in over the first 8 frames (frame 0 neutral) and clips to [0, 1]."""
+
+    def __init__(self, names: tuple, n_frames: int):
+        self.t = np.arange(n_frames, dtype=np.float64)
+        self.index = {name: i for i, name in enumerate(names)}
+        self.w = np.zeros((n_frames, len(names)))
+
+    def add(self, name: str, curve: np.ndarray) -> None:
+        if name in self.index:
+            self.w[:, self.index[name]] += curve
+
+    def done(self) -> np.ndarray:
+        return np.clip(self.w * np.clip(self.t / 8.0, 0.0, 1.0)[:, None], 0.0, 1.0)
+
+
 def expression_weights(names: tuple, n_frames: int, rng: np.random.Generator) -> np.ndarray:
     """(n_frames, n_expr) smooth weights in [0, 1]: talking, smiling, blinking, jaw opening, brows; row 0 zero."""
-    t = np.arange(n_frames, dtype=np.float64)
-    index = {name: i for i, name in enumerate(names)}
-    w = np.zeros((n_frames, len(names)))
-
-    def add(name: str, curve: np.ndarray) -> None:
-        if name in index:
-            w[:, index[name]] += curve
-
+    w = _Weights(names, n_frames)
+    t, add = w.t, w.add
     # talking: the jaw and lips follow a syllable rhythm (~4 Hz at 25 fps) under a slowly varying envelope
     envelope = np.clip(_bumps(t, rng, rate=0.02, width=30, height=(0.5, 1.0)), 0, 1)
     phase = rng.uniform(0, 2 * np.pi, 4)
@@ -127,9 +138,7 @@ def expression_weights(names: tuple, n_frames: int, rng: np.random.Generator) ->
     add("browInnerUp_R", brow)
     add("browOuterUp_L", 0.6 * brow)
     add("browOuterUp_R", 0.6 * brow)
-    # start from the neutral face: fade everything in over the first frames
-    w *= np.clip(t / 8.0, 0.0, 1.0)[:, None]
-    return np.clip(w, 0.0, 1.0)
+    return w.done()
 
 
 def make_sequence(
@@ -142,8 +151,8 @@ def make_sequence(
     if identity is None:
         identity = random_identity(model, rng)
     weights = expression_weights(model.expression_names, n_frames, rng)
-    frames = neutral_face(model, identity)[None] + np.tensordot(weights, model.expression_deltas, axes=1)
-    return FaceSequence(frames.astype(np.float32), weights, np.asarray(identity, np.float64), model.landmark68)
+    return FaceSequence(apply_weights(model, identity, weights), weights, np.asarray(identity, np.float64),
+                        model.landmark68)
 
 
 def apply_weights(model: FaceModel, identity: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -155,14 +164,8 @@ def apply_weights(model: FaceModel, identity: np.ndarray, weights: np.ndarray) -
 def blind_spot_weights(names: tuple, n_frames: int, rng: np.random.Generator) -> np.ndarray:
     """(n_frames, n_expr) smooth weights of motions the 68 landmarks see badly: cheek puffs, nose sneers, a pucker
     and a jaw opening, each as a few smooth bumps of moderate strength; row 0 zero."""
-    t = np.arange(n_frames, dtype=np.float64)
-    index = {name: i for i, name in enumerate(names)}
-    w = np.zeros((n_frames, len(names)))
-
-    def add(name: str, curve: np.ndarray) -> None:
-        if name in index:
-            w[:, index[name]] += curve
-
+    w = _Weights(names, n_frames)
+    t, add = w.t, w.add
     rate = 3.0 / max(n_frames, 1)  # about three of each per sequence, whatever its length
     puff = _bumps(t, rng, rate=rate, width=15, height=(0.3, 0.7))
     add("cheekPuff_L", puff)
@@ -172,8 +175,7 @@ def blind_spot_weights(names: tuple, n_frames: int, rng: np.random.Generator) ->
     add("noseSneer_R", rng.uniform(0.7, 1.0) * sneer)
     add("mouthPucker", _bumps(t, rng, rate=rate, width=12, height=(0.3, 0.7)))
     add("jawOpen", _bumps(t, rng, rate=rate, width=12, height=(0.05, 0.2)))
-    w *= np.clip(t / 8.0, 0.0, 1.0)[:, None]
-    return np.clip(w, 0.0, 1.0)
+    return w.done()
 
 
 def head_turn(n_frames: int, *, yaw_deg: float = 15.0, pitch_deg: float = 5.0) -> np.ndarray:

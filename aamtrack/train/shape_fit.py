@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
+from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose, rotation_matrix
 
 LAMBDA_SHAPE = 1e-3
 LAMBDA_COEF = 1e-4
@@ -37,6 +37,11 @@ def _unpack(x, sm: ShapeModel, free_pose, fit_sigma, sigma_fixed):
     return q, sigma
 
 
+def _cross(x: float, y: float, z: float) -> np.ndarray:
+    """K(v): K(v) @ w = v x w."""
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
 def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
     """(residuals(x), jacobian(x)) of the fit of x = [free pose (log-scale for the scale), coefficients, sigma if
     ``fit_sigma``] to (68, 2) points (module docstring)."""
@@ -48,22 +53,19 @@ def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_si
 
     n_c = sm.n_coef
 
-    def _rot(x):
-        """(q, R = Rz Ry Rx, {axis: dR / d angle})."""
-        q, _ = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-        (cx, sx), (cy, sy), (cz, sz) = [(np.cos(a), np.sin(a)) for a in q[:3]]
-        Rx, dRx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]), np.array([[0, 0, 0], [0, -sx, -cx], [0, cx, -sx]])
-        Ry, dRy = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]]), np.array([[-sy, 0, cy], [0, 0, 0], [-cy, 0, -sy]])
-        Rz, dRz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]), np.array([[-sz, -cz, 0], [cz, -sz, 0], [0, 0, 0]])
-        dR = {0: Rz @ Ry @ dRx, 1: Rz @ dRy @ Rx, 2: dRz @ Ry @ Rx}
-        return q, Rz @ Ry @ Rx, dR
+    def _rot(q):
+        """(R, {axis: dR / d angle}) of R = Rz Ry Rx: dR/drx = R K(x), dR/dry = K(Rz y) R, dR/drz = K(z) R,
+        with K(v) the cross-product matrix of v."""
+        R = rotation_matrix(*q[:3])
+        cz, sz = np.cos(q[2]), np.sin(q[2])
+        return R, {0: R @ _cross(1.0, 0.0, 0.0), 1: _cross(-sz, cz, 0.0) @ R, 2: _cross(0.0, 0.0, 1.0) @ R}
 
     def _shape(q, sigma):
         return LM + np.tensordot(sigma, LS, axes=1) + np.tensordot(q[N_POSE:], LA, axes=1)
 
     def residuals(x):
         q, sigma = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-        _, R, _ = _rot(x)
+        R, _ = _rot(q)
         X = _shape(q, sigma)
         u = q[3] * X @ R[0] + q[4]
         v = -q[3] * X @ R[1] + q[5]
@@ -75,7 +77,7 @@ def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_si
     def jacobian(x):
         """d residuals / dx, analytic (the numerical one cost a residual evaluation per unknown)."""
         q, sigma = _unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-        _, R, dR = _rot(x)
+        R, dR = _rot(q)
         X = _shape(q, sigma)
         s = q[3] / width
         n_lm = len(points)

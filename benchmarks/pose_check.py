@@ -1,6 +1,7 @@
 """Head pose on synthetic renders of a textured face at known poses (the 3D model's pose check).
 
-A real face (a helen_train image) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``)
+A real face (a helen_test image: held out from training, whose face profiling turns helen_train faces by the
+same rasteriser) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``)
 and the image becomes the mesh's texture at that fit. The textured mesh is then rendered at known poses
 (yaw, pitch, roll; with and without an expression) into a noise (or plain) background by a painter's
 rasteriser: triangles sorted back to front by depth, back faces culled, each one an affine warp of its source
@@ -39,6 +40,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine_name, write_json  # noqa: E402
 
+from aamtrack.mesh.render import orient_triangles, posed, render_mesh  # noqa: E402
+
 TARGET_MEDIAN_DEG = 2.0  # goal: median angle error <= 2 degrees over the pose grid
 TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
 YAWS = (-45, -30, -15, 0, 15, 30, 45)
@@ -59,14 +62,6 @@ def rotation(rx: float, ry: float, rz: float) -> np.ndarray:
     return Rz @ Ry @ Rx
 
 
-def posed(X: np.ndarray, q) -> tuple[np.ndarray, np.ndarray]:
-    """Weak-perspective view of model points X (n, 3) under q = [rx, ry, rz, s, tx, ty, ...]: image points
-    (n, 2) (u = s (RX)_x + tx, v = -s (RX)_y + ty) and depth (n,) = (RX)_z (larger is nearer the camera)."""
-    RX = X @ rotation(q[0], q[1], q[2]).T
-    uv = np.column_stack([q[3] * RX[:, 0] + q[4], -q[3] * RX[:, 1] + q[5]])
-    return uv, RX[:, 2]
-
-
 def geodesic_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Angle (degrees) of the rotation R_a^T R_b."""
     c = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
@@ -82,81 +77,6 @@ def angle_errors(est, true) -> dict:
 
 
 # -- rendering ----------------------------------------------------------------------------------------------
-def orient_triangles(triangles: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """(t, 3) int triangles rewound consistently (every inner edge crossed in opposite directions by its two
-    triangles, spread from each connected piece's first triangle), each piece then flipped so that its
-    area-weighted normal points towards +z (outward for a face seen from the front) at ``vertices`` (n, 3).
-    Candide-3's triangle list is not consistently wound, so culling needs this."""
-    from collections import defaultdict, deque
-
-    tri = np.array(triangles, dtype=np.int64)
-    by_edge = defaultdict(list)
-    for i, (a, b, c) in enumerate(tri):
-        for u, v in ((a, b), (b, c), (c, a)):
-            by_edge[(min(u, v), max(u, v))].append(i)
-    done = np.zeros(len(tri), bool)
-    for seed in range(len(tri)):
-        if done[seed]:
-            continue
-        done[seed] = True
-        piece, queue = [seed], deque([seed])
-        while queue:
-            i = queue.popleft()
-            a, b, c = tri[i]
-            for u, v in ((a, b), (b, c), (c, a)):
-                for j in by_edge[(min(u, v), max(u, v))]:
-                    if done[j]:
-                        continue
-                    x, y, z = tri[j]
-                    if (u, v) in ((x, y), (y, z), (z, x)):  # same direction: j is wound the other way
-                        tri[j] = tri[j][::-1]
-                    done[j] = True
-                    piece.append(j)
-                    queue.append(j)
-        t = tri[piece]
-        n = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
-        if n[:, 2].sum() < 0:
-            tri[piece] = t[:, ::-1]
-    return tri
-
-
-def render(texture: np.ndarray, src_uv: np.ndarray, dst_uv: np.ndarray, depth: np.ndarray, triangles: np.ndarray,
-           background: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Painter's rasteriser: each triangle of ``triangles`` (t, 3) is the affine warp of ``texture`` from its
-    source corners ``src_uv`` (n, 2) to its destination corners ``dst_uv`` (n, 2), drawn back to front by
-    the mean ``depth`` (n,) of its corners (larger is nearer); triangles whose destination is wound clockwise
-    on screen (image y down), i.e. facing away for the model's outward-wound mesh, are culled.
-
-    Returns (image like ``background``, (H, W) bool mask of the pixels drawn). Approximation: the visibility
-    is per triangle (no z-buffer), exact for a mesh without interpenetrating triangles."""
-    out = background.copy()
-    H, W = out.shape[:2]
-    drawn = np.zeros((H, W), bool)
-    tri = np.asarray(triangles)
-    a, b, c = dst_uv[tri[:, 0]], dst_uv[tri[:, 1]], dst_uv[tri[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    order = np.argsort(depth[tri].mean(1), kind="stable")
-    for t in order:
-        if area2[t] >= -1e-9:  # counter-clockwise in model (y up) = clockwise on screen: front faces are < 0
-            continue
-        d = dst_uv[tri[t]].astype(np.float64)
-        x0, y0 = np.floor(d.min(0)).astype(int)
-        x1, y1 = np.ceil(d.max(0)).astype(int) + 1
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
-        if x1 <= x0 or y1 <= y0:
-            continue
-        off = np.array([x0, y0], float)
-        M = cv2.getAffineTransform(src_uv[tri[t]].astype(np.float32), (d - off).astype(np.float32))
-        patch = cv2.warpAffine(texture, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_REPLICATE)
-        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        cv2.fillConvexPoly(mask, np.round((d - off) * 16).astype(np.int32), 1, lineType=cv2.LINE_8, shift=4)
-        m = mask.astype(bool)
-        out[y0:y1, x0:x1][m] = patch[m]
-        drawn[y0:y1, x0:x1] |= m
-    return out, drawn
-
-
 def make_background(kind: str, rng: np.random.Generator, shape=(CANVAS, CANVAS, 3)) -> np.ndarray:
     """uint8 background: "plain" mid grey, or "noise" (grey noise blurred to ~3 px blobs)."""
     if kind == "plain":
@@ -185,11 +105,11 @@ class TexturedFace:
 
     def render(self, q: np.ndarray, background: np.ndarray) -> np.ndarray:
         uv, z = self.view(q)
-        return render(self.image, self.src_uv, uv, z, self.triangles, background)[0]
+        return render_mesh(self.image, self.src_uv, uv, z, self.triangles, background)[0]
 
 
 def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0, max_nme: float = 0.06) -> list:
-    """The first ``n_faces`` helen_train photos (sorted by name) that the model fits confidently, near
+    """The first ``n_faces`` photos of ``data`` (sorted by name) that the model fits confidently, near
     frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme)."""
     from aamtrack.io.dataset import find_pairs, load_pair
     from aamtrack.metrics import nme
@@ -255,7 +175,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
     rng = np.random.default_rng(seed)
     faces = source_faces(model, data, n_faces)
     if not faces:
-        raise SystemExit(f"no helen_train image in {data} was fitted near frontal to use as a texture")
+        raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     poses = pose_grid(grid)[:limit]
     rows = []
     t_start = time.perf_counter()
@@ -360,7 +280,7 @@ def table(report: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", type=Path, default=Path("models/3d.npz"))
-    ap.add_argument("--data", type=Path, default=Path("../shared/data/300w/helen_train"))
+    ap.add_argument("--data", type=Path, default=Path("../shared/data/300w/helen_test"))
     ap.add_argument("--faces", type=int, default=3, help="source photos (textures)")
     ap.add_argument("--grid", choices=("axes", "full"), default="axes")
     ap.add_argument("--frames", type=int, default=30, help="frames of each video, frontal to the pose")

@@ -1,4 +1,4 @@
-"""The renderer and angle metrics of benchmarks/pose_check.py on synthetic meshes and textures whose answers
+"""The mesh renderer (aamtrack.mesh.render) and the angle metrics of benchmarks/pose_check.py on synthetic meshes and textures whose answers
 are known by construction (one test on a helen_train photo, marked shared_data)."""
 
 import sys
@@ -10,9 +10,11 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from pose_check import angle_errors, geodesic_deg, orient_triangles, posed, render, rotation  # noqa: E402
 from conftest import SEED, shared_path  # noqa: E402
+from pose_check import angle_errors, geodesic_deg, rotation  # noqa: E402
 
+from aamtrack.mesh.render import orient_triangles, posed  # noqa: E402
+from aamtrack.mesh.render import render_mesh as render  # noqa: E402
 from aamtrack.mesh.shape_model import ShapeModel, rotation_matrix  # noqa: E402
 
 SIZE = 240

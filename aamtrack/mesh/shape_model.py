@@ -135,8 +135,9 @@ class ShapeModel:
         return basis, free, np.r_[lo, -3 * self.shape_sd], np.r_[hi, 3 * self.shape_sd]
 
     def frontal_width(self) -> float:
-        """Width of the mean shape in model units (x extent): the face width that scale s multiplies."""
-        x = self.mean[:, 0]
+        """Width of the mean shape's 68 landmarks in model units (x extent): the face width that scale s
+        multiplies. Vertices beyond the landmarks (a texture band or ring) do not widen it."""
+        x = self.landmark_map @ self.mean[:, 0]
         return float(x.max() - x.min())
 
 

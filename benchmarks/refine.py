@@ -1,6 +1,7 @@
 """Benchmark of key point refinement (tracking of scan sequences) and facial transfer on ICT FaceKit faces.
 
-    python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--json OUT]
+    python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--no-transfer]
+                                [--pull normal|mixed|plane] [--tangential W] [--json OUT]
 
 Tracking, per identity (errors in millimetres, mean |D^t(F^0) - F^t| over frames 1..T against the exact ICT
 correspondence): the ``blind`` scenario (default) is motion the 68 landmarks see badly -- cheek puffs, nose sneers,
@@ -10,12 +11,14 @@ is the older sequence (talking, smiles, blinks, brows; whole head scanned, no no
 vertices 0..9408) and far from the landmarks (face vertices more than 2.5 cm from every landmark in F^0), for the
 68-landmark thin-plate RBF, the refined key points, and the refined key points without the GMM step (same
 sampler, key points left at the prior: landmark prediction near the landmarks, the head's rigid motion far from
-them) -- the GMM step's own contribution ("GMM step": the registration, the projection onto the scan and the
-gate, all of step 4 of the sampler). The errors of those two are split into their parts along the true surface
+them) -- the GMM step's own contribution ("GMM step": the registration, the projection onto the scan, the
+gate and the smoothing over time, all of step 4 of the sampler). The errors of those two are split into their parts along the true surface
 normal and along the surface, and two bounds are computed from the ground truth (analysis only; nothing is tuned
 on them): the refined key points at their true places (the loss of the RBF interpolation itself) and the prior's
-key points moved by their true normal offsets (the best any point-to-plane step could do). Time per frame of the whole refinement on one core, and again (median of
-3 runs) for scans of 10,000 points. Also: the transfer error to another identity against ground truth (source: a
+key points moved by their true normal offsets (the best any point-to-plane step could do). ``--pull`` swaps the
+registration's pull for one that also moves the key points along the surface (:func:`sampler_config`), to
+measure whether the scans place them there. Time per frame of the whole refinement on one core, and again
+(median of 3 runs) for scans of 10,000 points. Also: the transfer error to another identity against ground truth (source: a
 shuffled random half of its vertices so only the 68 landmarks correspond), and one GMM registration of 10,000
 points. Compile time is reported apart.
 """
@@ -106,14 +109,14 @@ def _sequence(model, scenario: str, seed: int, n_frames: int):
 
 
 def sampler_config(seed: int, pull: str = "normal", tangential: float = 0.1) -> SamplerConfig:
-    """The sampler's defaults, or with the registration's pull at the smooth-field scales (``nodes`` > 0) changed
-    to ``pull`` ("plane": point-to-plane with the key points free in 3D plus ``tangential`` point-to-point;
-    "mixed": the normal pull plus ``tangential`` of the step along the surface); the last scale (key point by key
-    point) keeps the normal pull (a coupled 3D system per key point would be 3 k unknowns per frame)."""
+    """The sampler's defaults, or with the registration's pull changed to ``pull``: "mixed" (the normal pull plus
+    ``tangential`` of the step along the surface) at every scale; "plane" (point-to-plane with the key points free
+    in 3D plus ``tangential`` point-to-point) at the smooth-field scales (``nodes`` > 0), the last scale (key point
+    by key point) keeping the normal pull (coupled 3D normal equations there would have 3 k unknowns per frame)."""
     config = SamplerConfig(seed=seed)
     if pull == "normal":
         return config
-    pulls = tuple(pull if n else "normal" for n in config.nodes)
+    pulls = tuple(pull if n or pull == "mixed" else "normal" for n in config.nodes)
     return dataclasses.replace(config, gmm=dataclasses.replace(config.gmm, pull=pulls, tangential=tangential))
 
 

@@ -1,6 +1,7 @@
 """Benchmark of key point refinement (tracking of scan sequences) and facial transfer on ICT FaceKit faces.
 
-    python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--json OUT]
+    python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--no-transfer]
+                                [--pull normal|mixed|plane] [--tangential W] [--smooth-frames S] [--json OUT]
 
 Tracking, per identity (errors in millimetres, mean |D^t(F^0) - F^t| over frames 1..T against the exact ICT
 correspondence): the ``blind`` scenario (default) is motion the 68 landmarks see badly -- cheek puffs, nose sneers,
@@ -10,12 +11,14 @@ is the older sequence (talking, smiles, blinks, brows; whole head scanned, no no
 vertices 0..9408) and far from the landmarks (face vertices more than 2.5 cm from every landmark in F^0), for the
 68-landmark thin-plate RBF, the refined key points, and the refined key points without the GMM step (same
 sampler, key points left at the prior: landmark prediction near the landmarks, the head's rigid motion far from
-them) -- the GMM step's own contribution ("GMM step": the registration, the projection onto the scan and the
-gate, all of step 4 of the sampler). The errors of those two are split into their parts along the true surface
+them) -- the GMM step's own contribution ("GMM step": the registration, the projection onto the scan, the
+gate and the smoothing over time, all of step 4 of the sampler). The errors of those two are split into their parts along the true surface
 normal and along the surface, and two bounds are computed from the ground truth (analysis only; nothing is tuned
 on them): the refined key points at their true places (the loss of the RBF interpolation itself) and the prior's
-key points moved by their true normal offsets (the best any point-to-plane step could do). Time per frame of the whole refinement on one core, and again (median of
-3 runs) for scans of 10,000 points. Also: the transfer error to another identity against ground truth (source: a
+key points moved by their true normal offsets (the best any point-to-plane step could do). ``--pull`` swaps the
+registration's pull for one that also moves the key points along the surface (:func:`sampler_config`), to
+measure whether the scans place them there. Time per frame of the whole refinement on one core, and again
+(median of 3 runs) for scans of 10,000 points. Also: the transfer error to another identity against ground truth (source: a
 shuffled random half of its vertices so only the 68 landmarks correspond), and one GMM registration of 10,000
 points. Compile time is reported apart.
 """
@@ -105,7 +108,23 @@ def _sequence(model, scenario: str, seed: int, n_frames: int):
     return make_sequence(model, n_frames=n_frames, seed=seed)
 
 
-def tracking(model, seed: int, n_frames: int, scenario: str = "blind") -> tuple:
+def sampler_config(seed: int, pull: str = "normal", tangential: float = 0.1,
+                   smooth_frames: float | None = None) -> SamplerConfig:
+    """The sampler's defaults, or with the registration's pull changed to ``pull``: "mixed" (the normal pull plus
+    ``tangential`` of the step along the surface) at every scale; "plane" (point-to-plane with the key points free
+    in 3D plus ``tangential`` point-to-point) at the smooth-field scales (``nodes`` > 0), the last scale (key point
+    by key point) keeping the normal pull (coupled 3D normal equations there would have 3 k unknowns per frame).
+    smooth_frames : the sampler's ``temporal`` (None: its default)."""
+    config = SamplerConfig(seed=seed)
+    if smooth_frames is not None:
+        config = dataclasses.replace(config, temporal=smooth_frames)
+    if pull == "normal":
+        return config
+    pulls = tuple(pull if n or pull == "mixed" else "normal" for n in config.nodes)
+    return dataclasses.replace(config, gmm=dataclasses.replace(config.gmm, pull=pulls, tangential=tangential))
+
+
+def tracking(model, seed: int, n_frames: int, scenario: str = "blind", config: SamplerConfig | None = None) -> tuple:
     seq = _sequence(model, scenario, seed, n_frames)
     frames = seq.frames.astype(np.float64)
     lm = seq.landmark68
@@ -118,7 +137,7 @@ def tracking(model, seed: int, n_frames: int, scenario: str = "blind") -> tuple:
            "motion_face_mm": float(np.linalg.norm(frames[1:, face] - frames[0, face], axis=2).mean() * CM_TO_MM)}
     normals = np.stack([gmm.surface_normals(f, mesh_spacing(f)) for f in frames])  # of the true surfaces
     out["landmarks_68"] = _errors(deform_frames(frames[0], KeyPoints(lm, frames[:, lm], len(lm))), frames, face, far)
-    config = SamplerConfig(seed=seed)
+    config = SamplerConfig(seed=seed) if config is None else dataclasses.replace(config, seed=seed)
     start, cpu = time.perf_counter(), time.process_time()
     keys = refine_key_points(frames[0], scans, frames[:, lm], lm, config=config)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -146,7 +165,7 @@ def tracking(model, seed: int, n_frames: int, scenario: str = "blind") -> tuple:
     return out, seq
 
 
-def timing_10k(model, n_frames: int, repeats: int = 3) -> dict:
+def timing_10k(model, n_frames: int, repeats: int = 3, config: SamplerConfig | None = None) -> dict:
     """Seconds per frame of the whole refinement for scans of 10,000 points (blind scenario), median of repeats."""
     seq = _sequence(model, "blind", 100, n_frames)
     frames = seq.frames.astype(np.float64)
@@ -154,7 +173,8 @@ def timing_10k(model, n_frames: int, repeats: int = 3) -> dict:
     times, cpu = [], []
     for _ in range(repeats):
         start, cpu0 = time.perf_counter(), time.process_time()
-        refine_key_points(frames[0], scans, frames[:, seq.landmark68], seq.landmark68, config=SamplerConfig(seed=100))
+        refine_key_points(frames[0], scans, frames[:, seq.landmark68], seq.landmark68,
+                          config=dataclasses.replace(config or SamplerConfig(), seed=100))
         times.append((time.perf_counter() - start) / n_frames)
         cpu.append((time.process_time() - cpu0) / n_frames)
     return {"scan_points": 10_000, "frames": n_frames, "repeats": repeats,
@@ -226,19 +246,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--identities", type=int, default=2, help="identities to track (default 2)")
     parser.add_argument("--scenario", choices=("blind", "talking"), default="blind", help="tracking sequence")
     parser.add_argument("--no-transfer", action="store_true", help="skip the transfer and 10k GMM cases")
+    parser.add_argument("--pull", choices=("normal", "plane", "mixed"), default="normal",
+                        help="registration pull at the smooth-field scales (default: normal, the sampler's)")
+    parser.add_argument("--tangential", type=float, default=0.1,
+                        help="with --pull plane/mixed: weight of the motion along the surface (default 0.1)")
+    parser.add_argument("--smooth-frames", type=float, help="the sampler's smoothing over time, in frames "
+                        "(default: the sampler's, 2; 0 off)")
     parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
     if not ICT.exists():
         print(f"needs {ICT} (absent)", file=sys.stderr)
         return 2
     model = load_face_model(ICT)
-    report = {"machine": machine(), "command": " ".join(["python benchmarks/refine.py", *(argv or sys.argv[1:])])}
+    report = {"machine": machine(), "command": " ".join(["python benchmarks/refine.py", *(argv or sys.argv[1:])]),
+              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames))}
     start = time.perf_counter()
     gmm.warmup()
     report["compile_seconds"] = time.perf_counter() - start
     report["tracking"], report["transfer"] = [], []
     for i in range(args.identities):
-        track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario)
+        track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario,
+                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames))
         report["tracking"].append(track)
         a, r, w = track["landmarks_68"], track["refined"], track["without_gmm"]
         print(f"identity {i} ({args.scenario}, {track['scan_points']} points/scan): face / far from landmarks (mm): "
@@ -260,7 +288,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"identity {i} -> other identity: transfer error {trans['error_mm']:.3f} mm "
                   f"(not moving the target: {trans['error_if_not_moved_mm']:.3f} mm), {trans['seconds']:.1f} s",
                   flush=True)
-    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30))
+    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30),
+                                      config=sampler_config(100, args.pull, args.tangential, args.smooth_frames))
     print(f"scans of 10,000 points: {report['timing_10k']['median_seconds_per_frame']:.2f} s/frame wall, "
           f"{report['timing_10k']['median_cpu_seconds_per_frame']:.2f} s/frame CPU (median of "
           f"{report['timing_10k']['repeats']})", flush=True)

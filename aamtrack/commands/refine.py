@@ -38,6 +38,9 @@ def register(sub) -> None:
     p.add_argument("--landmarks", type=Path, help="landmark CSV for a folder of scans (X_i, Y_i, Z_i columns)")
     p.add_argument("--template-landmarks", type=Path, help="text file of the template's 68 landmark vertices")
     p.add_argument("--seed", type=int, default=0, help="seed of the key point sampler (default 0)")
+    p.add_argument("--smooth-frames", type=float, default=2.0, metavar="SIGMA",
+                   help="smooth the key points' scan corrections over time by a Gaussian of SIGMA frames (default 2: "
+                        "for noisy, partial scans; 0: off, for clean scans of fast motion)")
     p.set_defaults(func=run)
 
 
@@ -121,7 +124,9 @@ def run(args: argparse.Namespace) -> int:
         _check_obj_dir(args.obj_dir)
     if min(len(s) for s in scans) < 4:
         raise InputError(f"{args.scans}: a scan has fewer than 4 points")
-    config = SamplerConfig(seed=args.seed)
+    if not args.smooth_frames >= 0:
+        raise InputError(f"--smooth-frames must be 0 or more, got {args.smooth_frames}")
+    config = SamplerConfig(seed=args.seed, temporal=args.smooth_frames)
     n_reg = len(scans) - 1
     with tqdm(total=n_reg, desc="round 1", unit="frame", file=sys.stderr, disable=None) as bar:
         state = {"round": 1}

@@ -11,7 +11,11 @@ point by the difference of the Gaussian-weighted means of scene and moving set a
 point divided by the local weight) and fits the controls to that by least squares, plus
 ``anchor * mean |Y - Y_prior|^2``, which keeps the controls near a prior where the surface alone cannot place them
 (sliding along a flat patch). With ``pull="normal"`` (the default) only the component of each point's step along
-its surface normal is kept (point-to-plane): where the skin slid along the surface is left to the prior.
+its surface normal is kept, and the controls are fitted to those steps: where the skin slid along the surface is
+left to the prior. ``pull="plane"`` is point-to-plane proper (with a little point-to-point, ``tangential``): the
+controls, free in 3D, are fitted to the steps' normal parts only, so that where a region's normals differ (its
+curvature) they fix its motion along the surface too; ``"mixed"`` keeps ``tangential`` of the step's part along
+the surface; ``"isotropic"`` keeps all of it (point-to-point).
 Approximations, all for speed: the Gauss transforms skip pairs beyond 3 h (terms
 ``< exp(-9)``); the moving set's own mean is evaluated once per scale; at most ``max_points`` moving points (a random
 subset) steer the steps at each scale, and coarse scales thin both sets. Memory is O(n + m) throughout.
@@ -31,6 +35,8 @@ from .gauss_grid import GaussGrid, _as_points, gauss_moments, gauss_transform
 
 log = logging.getLogger(__name__)
 
+PULLS = ("normal", "mixed", "plane", "isotropic")
+
 __all__ = ["GaussGrid", "GmmConfig", "GmmResult", "gauss_moments", "gauss_transform", "l2_cost", "register",
            "smooth_basis", "surface_normals", "thin", "warmup"]
 
@@ -46,10 +52,13 @@ class GmmConfig:
     moving points per scale, a random subset (None: all); the result moves every point. tol : Gauss transform truncation: pairs with ``exp(-r^2/h^2) < tol`` are
     skipped (the default, ``exp(-9)``, is a cutoff at 3 h: approximate; None: exact O(n m) sums).
     density : at a coarse scale both sets are thinned at random to about ``density`` points per h (so a point
-    meets a bounded number of others); seed : of that thinning. pull : ``"normal"`` moves each point only along
-    its surface normal (point-to-plane: where the skin slides along the surface is left to the anchor's prior),
-    ``"isotropic"`` by the whole difference of the means (point-to-point). anchor_tangential : with the normal
-    pull, the anchor holds the controls only along the surface, not along their normals.
+    meets a bounded number of others); seed : of that thinning. pull : one name, or one per scale:
+    ``"normal"`` moves each point only along its surface normal (where the skin slides along the surface is left
+    to the anchor's prior), ``"plane"`` point-to-plane with the controls free in 3D plus ``tangential`` of
+    point-to-point (the three axes coupled: 3 d unknowns per call, meant for scales with a small basis),
+    ``"mixed"`` the normal step plus ``tangential`` times its part along the surface, ``"isotropic"`` by the whole
+    difference of the means (point-to-point). tangential : see pull. anchor_tangential : with the normal pull,
+    the anchor holds the controls only along the surface, not along their normals.
     """
 
     scales: tuple = (2.0, 1.0)
@@ -60,8 +69,16 @@ class GmmConfig:
     tol: float | None = float(np.exp(-9.0))
     density: float = 1.5
     seed: int = 0
-    pull: str = "normal"
+    pull: str | tuple = "normal"
+    tangential: float = 0.1
     anchor_tangential: bool = False
+
+    def pull_at(self, level: int) -> str:
+        """The pull of scale ``level`` (``pull`` is one name, or one per scale)."""
+        pull = self.pull if isinstance(self.pull, str) else self.pull[level]
+        if pull not in PULLS:
+            raise ValueError(f"unknown pull {pull!r}; expected one of {PULLS}")
+        return pull
 
 
 @dataclass(frozen=True)
@@ -144,7 +161,7 @@ def register(
             system = _normal_equations(operator[rows], free, basis, config)
             if cache is not None:
                 cache[level] = (rows, system)
-        n_iter, residual = _iterate(y, free, z, h, y0_free, basis, config, system)
+        n_iter, residual = _iterate(y, free, z, h, y0_free, basis, config, system, config.pull_at(level))
         n_evals += n_iter
         log.debug("gmm: h=%.4g, %d iterations, residual %.4g", h, n_iter, residual)
     return GmmResult(y, operator @ y, residual, n_evals)
@@ -164,9 +181,35 @@ def _normal_equations(operator, free, basis, config) -> tuple:
     return l_fixed, l_free, l_basis, factor
 
 
-def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, float]:
+def _plane_equations(l_basis, normals, basis, w_anchor, mu) -> tuple:
+    """Cholesky factor of the coupled normal equations of the point-to-plane step (see :func:`_iterate`) and the
+    per-point weights W_i = mu I + (1 - mu) n_i n_i^T : (m, 3, 3)."""
+    m, d = l_basis.shape
+    w = mu * np.eye(3) + (1.0 - mu) * normals[:, :, None] * normals[:, None, :]
+    eye = np.eye(d) if basis is None else basis.T @ basis
+    big = np.empty((3 * d, 3 * d))
+    for a in range(3):
+        for b in range(a, 3):
+            block = (l_basis * (w[:, a, b] / m)[:, None]).T @ l_basis
+            if a == b:
+                block = block + w_anchor * eye
+            big[a * d:(a + 1) * d, b * d:(b + 1) * d] = block
+            big[b * d:(b + 1) * d, a * d:(a + 1) * d] = block.T
+    factor = scipy.linalg.cho_factor(big + 1e-12 * np.trace(big) * np.eye(3 * d))
+    return factor, w
+
+
+def _iterate(y, free, scene, h, y0_free, basis, config, system, pull) -> tuple[int, float]:
     """One scale of :func:`register` (system: of :func:`_normal_equations`); updates ``y[free]`` in place, returns
-    (iterations, last mean squared step)."""
+    (iterations, last mean squared step).
+
+    pull "plane": the controls' step theta minimises ``sum_i (u_i - s_i)^T W_i (u_i - s_i) / m + anchor`` with u_i
+    the step of moving point i, s_i its mean-shift step and ``W_i = mu I + (1 - mu) n_i n_i^T`` (mu =
+    ``config.tangential``): point-to-plane plus a little point-to-point. Unlike "normal" (which fits the controls
+    to steps projected on the normals, i.e. asks for no motion along the surface), the motion along the surface is
+    left to the other points: where the normals of a region differ (its curvature) they fix its motion in 3D.
+    The three axes are coupled, so the normal equations (3 d unknowns) are built per call: meant for the scales
+    with a small basis."""
     l_fixed, l_free, l_basis, factor = system
     m, n_free = len(l_free), int(free.sum())
     x_fixed = l_fixed @ y[~free]
@@ -175,10 +218,14 @@ def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, fl
     x = np.ascontiguousarray(x_fixed + l_free @ yf)
     # m_X(x_i) - x_i, the mean of the moving set around x_i (x_i left out: it has weight exactly 1), is a property
     # of the local shape; it is evaluated once per scale and held fixed while the set deforms a little (approximate)
-    bias, normals = _shape(x, h, config)
+    bias, normals = _shape(x, h, config, pull)
     # with the normal pull the anchor holds the controls only along the surface (their normal place is the scan's):
     # its target is the prior slid along each control's normal (that of the nearest moving point) to the control
     key_normals = normals[cKDTree(x).query(yf)[1]] if normals is not None and config.anchor_tangential else None
+    w_point = None
+    if pull == "plane":
+        factor, w_point = _plane_equations(l_basis, normals, basis, w_anchor, config.tangential)
+        normals = None
     scene_grid = GaussGrid(scene, h, tol=config.tol)
     w_z, mean_z = np.empty(m), np.empty((m, 3))
     n_iter, residual = 0, float("nan")
@@ -188,13 +235,20 @@ def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, fl
         conf = w_z / (w_z + 0.1 * max(float(np.median(w_z)), 1e-12))
         step = (mean_z - x - bias) * conf[:, None]
         if normals is not None:  # point-to-plane: only the component along the normal (held for the scale)
-            step = normals * (step * normals).sum(1)[:, None]
+            along_normal = normals * (step * normals).sum(1)[:, None]
+            step = along_normal if pull == "normal" else along_normal + config.tangential * (step - along_normal)
+        if w_point is not None:
+            step = np.einsum("nij,nj->ni", w_point, step)
         residual = float((step * step).sum(1).mean())
         off = yf - y0_free
         if key_normals is not None:
             off = off - key_normals * (off * key_normals).sum(1)[:, None]
         rhs = l_basis.T @ step / m - w_anchor * (off if basis is None else basis.T @ off)
-        theta = scipy.linalg.cho_solve(factor, rhs)
+        if w_point is None:
+            theta = scipy.linalg.cho_solve(factor, rhs)
+        else:  # the three axes' unknowns stacked axis by axis
+            d = rhs.shape[0]
+            theta = scipy.linalg.cho_solve(factor, rhs.T.reshape(-1)).reshape(3, d).T
         delta = theta if basis is None else basis @ theta
         yf = yf + delta
         moved = l_free @ delta
@@ -207,7 +261,7 @@ def _iterate(y, free, scene, h, y0_free, basis, config, system) -> tuple[int, fl
     return n_iter, residual
 
 
-def _shape(x: np.ndarray, h: float, config: GmmConfig) -> tuple[np.ndarray, np.ndarray | None]:
+def _shape(x: np.ndarray, h: float, config: GmmConfig, pull: str) -> tuple[np.ndarray, np.ndarray | None]:
     """(bias (m, 3), normals (m, 3) or None) of the moving set x at scale h: ``m_X(x_i) - x_i``, the mean of the
     moving set around each point with the point itself left out (it has weight exactly 1), which the scene's mean
     shows too where the two sets coincide (a property of the local shape, subtracted from the step), and the
@@ -217,7 +271,7 @@ def _shape(x: np.ndarray, h: float, config: GmmConfig) -> tuple[np.ndarray, np.n
     GaussGrid(x, h, tol=config.tol).moments(x, w_x, mean_x)
     w_self = np.maximum(w_x - 1.0, 0.0)
     bias = np.where(w_self[:, None] > 1e-9, w_x[:, None] * (mean_x - x) / np.maximum(w_self, 1e-9)[:, None], 0.0)
-    return bias, (surface_normals(x, h) if config.pull == "normal" else None)
+    return bias, (surface_normals(x, h) if pull != "isotropic" else None)
 
 
 def l2_cost(x: np.ndarray, scene: np.ndarray, scale: float, *, tol: float | None = None) -> float:

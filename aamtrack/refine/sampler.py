@@ -10,6 +10,8 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
    scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
+   then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
+   surface anew in every frame, so their sampling noise is independent between frames, the motion is not);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
 Step 4 in detail (our choices; the paper names only the registration method). A surface says where the skin is
@@ -35,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+import scipy.ndimage
 from scipy.spatial import cKDTree
 
 from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
@@ -62,7 +65,10 @@ class SamplerConfig:
     registration, move each free key point along the scan's normal onto the scan (:func:`_project`); gate : a free
     key point whose prior lies within this many (thinned) spacings of the scan's tangent plane stays at its prior:
     the scan does not contradict it there, and registration and projection would only add drift along the surface
-    (seen on the ears); 0 turns it off; seed : of the sampling.
+    (seen on the ears); 0 turns it off; temporal : the key points' offsets from their prior (what step 4 adds) are
+    smoothed over the frames by a Gaussian of this standard deviation in frames (0: off; needs more than two
+    frames): each scan is a new sample of the surface with new noise, the skin's motion is smooth in time;
+    seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -80,6 +86,7 @@ class SamplerConfig:
     registration: bool = True
     project: bool = True
     gate: float = 0.02
+    temporal: float = 2.0
     seed: int = 0
 
 
@@ -213,9 +220,10 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
         if len(far_pool) else np.zeros(0, np.int64)
     prior_op = rbf_system(neutral[np.r_[index[:n_fixed], anchors]], kernel=config.kernel).operator(rest)
     out = positions.copy()
+    priors = np.empty_like(positions)
     cache = {}  # the registration's normal equations: the same for every frame
     for t in range(1, len(positions)):
-        prior = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
+        prior = priors[t] = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
         if not config.registration:  # ablation: the key points stay at their prior
             out[t, n_fixed:] = prior[n_fixed:]
             if progress is not None:
@@ -230,6 +238,12 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if progress is not None:
             progress(1)
+    if config.registration and config.temporal > 0 and len(out) > 2:
+        # the scans' sampling (a new random subset, new noise each frame) is independent from frame to frame, the
+        # skin's motion is not: the key points' offsets from their prior are smoothed over time
+        offsets = scipy.ndimage.gaussian_filter1d(out[1:, n_fixed:] - priors[1:, n_fixed:], config.temporal, axis=0,
+                                                  mode="nearest")
+        out[1:, n_fixed:] = priors[1:, n_fixed:] + offsets
     return out
 
 

@@ -142,12 +142,13 @@ def _bad_inputs(tmp):
         "csv rows vs scans": [tpl, folder],
         "empty folder": [tpl, empty],
         "bad ply": [tpl, tmp / "bad.ply"],
+        "negative smoothing": [tpl, scans, "--smooth-frames", "-1"],
     }
 
 
 BAD = ["missing template", "missing scans", "nan in points", "missing landmarks key", "frame count mismatch",
        "67 landmarks", "one frame", "truncated npz", "duplicate landmarks", "huge coordinates", "tiny coordinates",
-       "template without a mesh", "flat template", "csv rows vs scans", "empty folder", "bad ply"]
+       "template without a mesh", "flat template", "csv rows vs scans", "empty folder", "bad ply", "negative smoothing"]
 
 
 @pytest.mark.parametrize("case", BAD)

@@ -46,6 +46,8 @@ class Searcher:
                 self._scratch[D] = (np.empty((sm.n_vertices, 2)), np.empty(D, np.float32),
                                     np.empty(max(t.appearance.shape[1], 1)), np.empty(D), np.empty(self.n_params))
         self._delta_tol = [self._tolerances(c.free) for c in model.couples]
+        last = model.couples[-1]  # the update the fit statistics apply, cast once (numpy casts it on every @)
+        self._stat_update = (last.cascade[-1] if last.n_stages else last.update_matrix).astype(np.float64)
 
     def _tolerances(self, free: np.ndarray, tol: float = DELTA_TOL) -> np.ndarray:
         """(n_free,) Jacobian-search update sizes that count as converged: tol radians / log-scale, tol face
@@ -124,7 +126,7 @@ class Searcher:
         tn = float(np.linalg.norm(tex))
         corr = float(np.dot(tex, t.mean) / (tn * float(np.linalg.norm(t.mean)))) if tn > 1e-9 else 0.0
         energy = tn / math.sqrt(len(tex))
-        upd = (c.cascade[-1] @ e + c.cascade_bias[-1]) if c.n_stages else c.update_matrix @ e
+        upd = (self._stat_update @ e + c.cascade_bias[-1]) if c.n_stages else self._stat_update @ e
         pose_update = 0.0
         for a, j in enumerate(c.free):
             if j <= 3:  # radians, log-scale

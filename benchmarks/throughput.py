@@ -130,9 +130,10 @@ def dlib_worker(video: str, out_csv: str, tuned: bool = False) -> int:
 
 
 # -- timing ------------------------------------------------------------------------------------------------------
-def timed_process(cmd: list[str], *, env: dict | None = None, ok_codes=(0,)) -> tuple[float, subprocess.CompletedProcess]:
+def timed_process(cmd: list[str], *, env: dict | None = None, ok_codes=(0,), cwd=None
+                  ) -> tuple[float, subprocess.CompletedProcess]:
     t = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})})
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})}, cwd=cwd)
     seconds = time.perf_counter() - t
     if proc.returncode not in ok_codes:
         raise SystemExit(f"{' '.join(cmd)}: exit {proc.returncode}\n{proc.stderr[-2000:]}")
@@ -157,9 +158,11 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
     n_frames = None
     runs = {"aamtrack": [], "dlib": [], "dlib_mallopt": [], "before": []}
     stages = {"aamtrack": [], "before": []}
+    # the older checkout runs from its own folder: ``python -m`` puts the working folder first on sys.path, ahead
+    # of PYTHONPATH, so run from this repository it would import this repository's package
     env_before = {"PYTHONPATH": str(before)} if before else None
     if before:  # numba compiles that checkout's kernels on its first run: not timed
-        timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm_before"), env=env_before)
+        timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm_before"), env=env_before, cwd=before)
     timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm"))
     dlib_info = None
     for r in range(repeats):
@@ -176,7 +179,8 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
                                   str(work / "dlib.csv"), "--dlib-tuned"])
             runs["dlib_mallopt"].append(t)
         if before:
-            t, _ = timed_process(aamtrack_cmd(long_video, "--out-dir", work / "run_before"), env=env_before)
+            t, _ = timed_process(aamtrack_cmd(long_video, "--out-dir", work / "run_before"), env=env_before,
+                                 cwd=before)
             runs["before"].append(t)
             stages["before"].append(stage_medians(work / "run_before" / f"{long_video.stem}.json"))
         print(f"  repeat {r + 1}: " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in runs.items() if v), flush=True)
@@ -244,6 +248,8 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.dlib_worker:
         return dlib_worker(*a.dlib_worker, tuned=a.dlib_tuned)
+    a.work = a.work.resolve()  # absolute: the older checkout runs from its own folder
+    a.before = a.before.resolve() if a.before else None
     long_video, folder = make_data(a.work, a.video, a.loops)
     result = {"machine": machine_name(), "load_before": os.getloadavg(), "repeats": a.repeats}
     print(f"machine: {result['machine']}; load average {result['load_before'][0]:.2f}")

@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from ._kernels.features import gradient_features
+from ._kernels.resample import _resize_area
 
 FEATURE_KINDS = ("intensity", "gradient")
 
@@ -102,6 +103,25 @@ def local_contrast(img: np.ndarray, sigma: float) -> np.ndarray:
     return d / np.sqrt(cv2.blur(d * d, (k, k)) + 25.0)
 
 
+def resize_area(img: np.ndarray, k: float) -> np.ndarray:
+    """``cv2.resize(img, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)`` of a (H, W) float32 image, k <= 1; the
+    same bits, from a compiled kernel when 0.5 < k < 1 and 1 / k is not a whole number (OpenCV's general area
+    path, slow on small images; ``aamtrack._kernels.resample``), else from OpenCV."""
+    scale = 1.0 / k
+    if not 0.5 < k < 1.0 or abs(scale - round(scale)) < 2.220446049250313e-16 or img.dtype != np.float32 \
+            or img.ndim != 2:
+        return cv2.resize(img, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    H, W = img.shape
+    h, w = int(np.rint(H * k)), int(np.rint(W * k))  # cv2's size: saturate_cast<int>, rounding half to even
+    if h < 1 or w < 1:
+        return cv2.resize(img, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)  # its own error
+    if (h, w) == (H, W):
+        return img.copy()  # as cv2.resize does for a size that stays
+    out = np.empty((h, w), np.float32)
+    _resize_area(np.ascontiguousarray(img), scale, out)
+    return out
+
+
 class Levels:
     """The images one frame (or crop) offers the couples: ``get(r)`` resamples by r and computes the feature
     image (C, h, w) float32, once per factor."""
@@ -125,8 +145,7 @@ class Levels:
                                                            interpolation=cv2.INTER_AREA)
                 src /= 2
             k = r / src
-            img = self._raw[src] if k == 1.0 else cv2.resize(self._raw[src], None, fx=k, fy=k,
-                                                             interpolation=cv2.INTER_AREA)
+            img = self._raw[src] if k == 1.0 else resize_area(self._raw[src], k)
             if min(img.shape) < 2:
                 img = np.zeros((2, 2), np.float32)
             self._raw[r] = img

@@ -46,6 +46,14 @@ class Searcher:
                 self._scratch[D] = (np.empty((sm.n_vertices, 2)), np.empty(D, np.float32),
                                     np.empty(max(t.appearance.shape[1], 1)), np.empty(D), np.empty(self.n_params))
         self._delta_tol = [self._tolerances(c.free) for c in model.couples]
+        # what the fit statistics need of the finest couple, prepared once: the rows of its (last) update that move
+        # the pose, as float64 (numpy would cast on every @), and each row's unit (1, or face widths)
+        last = model.couples[-1]
+        pose = [a for a, j in enumerate(last.free) if j < N_POSE]
+        self._stat_update = (last.cascade[-1] if last.n_stages else last.update_matrix)[pose].astype(np.float64)
+        self._stat_bias = last.cascade_bias[-1][pose] if last.n_stages else np.zeros(len(pose))
+        self._stat_unit = [1.0 if last.free[a] <= 3 else self.width for a in pose]
+        self._mean_norm = [float(np.linalg.norm(t.mean)) for t in model.textures]
 
     def _tolerances(self, free: np.ndarray, tol: float = DELTA_TOL) -> np.ndarray:
         """(n_free,) Jacobian-search update sizes that count as converged: tol radians / log-scale, tol face
@@ -122,13 +130,10 @@ class Searcher:
         err = residual(levels.get(r), r, level_shift(r), self.shape3d, self.basis, p, t.mean, t.appearance,
                        t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:m], e)
         tn = float(np.linalg.norm(tex))
-        corr = float(np.dot(tex, t.mean) / (tn * float(np.linalg.norm(t.mean)))) if tn > 1e-9 else 0.0
+        corr = float(np.dot(tex, t.mean) / (tn * self._mean_norm[c.texture])) if tn > 1e-9 else 0.0
         energy = tn / math.sqrt(len(tex))
-        upd = (c.cascade[-1] @ e + c.cascade_bias[-1]) if c.n_stages else c.update_matrix @ e
+        upd = (self._stat_update @ e + self._stat_bias).tolist()
         pose_update = 0.0
-        for a, j in enumerate(c.free):
-            if j <= 3:  # radians, log-scale
-                pose_update += abs(upd[a])
-            elif j < N_POSE:  # model units of translation, in face widths
-                pose_update += abs(upd[a]) / self.width
+        for u, unit in zip(upd, self._stat_unit, strict=True):  # radians and log-scale; translation in face widths
+            pose_update += abs(u) if unit == 1.0 else abs(u) / unit
         return (float(math.sqrt(err)), corr, energy, math.log10(pose_update + 1e-3))

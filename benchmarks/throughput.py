@@ -22,8 +22,10 @@ repeated (``--repeats``), medians reported:
   without ``--overwrite`` must skip all 8; with ``--dask``, the folder through ``--scheduler`` on a LocalCluster
   of 2 worker processes, its CSVs compared byte for byte with those of ``--jobs``.
 
-The machine is named, with its load average before and after: on a shared machine compare figures as ratios
-within one run.
+The machine is named, with its load average before and after and at each repeat; the folder's runs also give
+their CPU seconds (the process and its workers): on a shared machine compare figures as ratios within one run,
+and read a ``--jobs 2`` gain against the load (with other jobs on the cores the second worker has none of its
+own, while the CPU seconds stay about those of ``--jobs 1``).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import argparse
 import csv
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -130,10 +133,14 @@ def dlib_worker(video: str, out_csv: str, tuned: bool = False) -> int:
 
 
 # -- timing ------------------------------------------------------------------------------------------------------
-def timed_process(cmd: list[str], *, env: dict | None = None, ok_codes=(0,)) -> tuple[float, subprocess.CompletedProcess]:
+def timed_process(cmd: list[str], *, env: dict | None = None, ok_codes=(0,), cwd=None
+                  ) -> tuple[float, subprocess.CompletedProcess]:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})})
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})}, cwd=cwd)
     seconds = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the process and the workers it waited for
+    proc.cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if proc.returncode not in ok_codes:
         raise SystemExit(f"{' '.join(cmd)}: exit {proc.returncode}\n{proc.stderr[-2000:]}")
     return seconds, proc
@@ -157,9 +164,11 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
     n_frames = None
     runs = {"aamtrack": [], "dlib": [], "dlib_mallopt": [], "before": []}
     stages = {"aamtrack": [], "before": []}
+    # the older checkout runs from its own folder: ``python -m`` puts the working folder first on sys.path, ahead
+    # of PYTHONPATH, so run from this repository it would import this repository's package
     env_before = {"PYTHONPATH": str(before)} if before else None
     if before:  # numba compiles that checkout's kernels on its first run: not timed
-        timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm_before"), env=env_before)
+        timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm_before"), env=env_before, cwd=before)
     timed_process(aamtrack_cmd(long_video, "--out-dir", work / "warm"))
     dlib_info = None
     for r in range(repeats):
@@ -176,10 +185,12 @@ def bench_long(long_video: Path, work: Path, repeats: int, before: Path | None, 
                                   str(work / "dlib.csv"), "--dlib-tuned"])
             runs["dlib_mallopt"].append(t)
         if before:
-            t, _ = timed_process(aamtrack_cmd(long_video, "--out-dir", work / "run_before"), env=env_before)
+            t, _ = timed_process(aamtrack_cmd(long_video, "--out-dir", work / "run_before"), env=env_before,
+                                 cwd=before)
             runs["before"].append(t)
             stages["before"].append(stage_medians(work / "run_before" / f"{long_video.stem}.json"))
-        print(f"  repeat {r + 1}: " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in runs.items() if v), flush=True)
+        print(f"  repeat {r + 1}: " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in runs.items() if v)
+              + f"; load average {os.getloadavg()[0]:.1f}", flush=True)
     out = {"frames": n_frames, "seconds": runs, "dlib": dlib_info}
     for k, v in runs.items():
         if v:
@@ -198,18 +209,21 @@ def _rows(path: Path) -> list[dict]:
 
 
 def bench_folder(folder: Path, work: Path, repeats: int, with_dask: bool) -> dict:
-    times = {1: [], 2: []}
+    times, cpu = {1: [], 2: []}, {1: [], 2: []}
     for r in range(repeats):
         for jobs in (1, 2):
-            t, _ = timed_process(aamtrack_cmd(folder, "--out-dir", work / f"jobs{jobs}", "--jobs", jobs, "--overwrite"),
-                                 ok_codes=(1,))  # exit 1: the corrupt member failed
+            t, proc = timed_process(aamtrack_cmd(folder, "--out-dir", work / f"jobs{jobs}", "--jobs", jobs,
+                                                 "--overwrite"), ok_codes=(1,))  # exit 1: the corrupt member failed
             times[jobs].append(t)
-        print(f"  repeat {r + 1}: jobs 1 {times[1][-1]:.2f} s, jobs 2 {times[2][-1]:.2f} s", flush=True)
+            cpu[jobs].append(proc.cpu_s)
+        print(f"  repeat {r + 1}: jobs 1 {times[1][-1]:.2f} s ({cpu[1][-1]:.2f} s CPU), jobs 2 {times[2][-1]:.2f} s "
+              f"({cpu[2][-1]:.2f} s CPU); load average {os.getloadavg()[0]:.1f}", flush=True)
     rows = _rows(work / "jobs2" / "batch.csv")
     status = {Path(r["input"]).name: r["status"] for r in rows}
     _, proc = timed_process(aamtrack_cmd(folder, "--out-dir", work / "jobs2", "--jobs", 2), ok_codes=(1,))
     rerun = {Path(r["input"]).name: r["status"] for r in _rows(work / "jobs2" / "batch.csv")}
-    out = {"seconds": times, "jobs1_median_s": statistics.median(times[1]), "jobs2_median_s": statistics.median(times[2]),
+    out = {"seconds": times, "cpu_seconds": cpu, "jobs1_median_s": statistics.median(times[1]),
+           "jobs2_median_s": statistics.median(times[2]),
            "ratio_jobs2_over_jobs1": statistics.median(times[2]) / statistics.median(times[1]),
            "status": status, "rerun_status": rerun,
            "broken_error": next(r["error"] for r in rows if r["input"].endswith("broken.mp4"))}
@@ -244,6 +258,8 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.dlib_worker:
         return dlib_worker(*a.dlib_worker, tuned=a.dlib_tuned)
+    a.work = a.work.resolve()  # absolute: the older checkout runs from its own folder
+    a.before = a.before.resolve() if a.before else None
     long_video, folder = make_data(a.work, a.video, a.loops)
     result = {"machine": machine_name(), "load_before": os.getloadavg(), "repeats": a.repeats}
     print(f"machine: {result['machine']}; load average {result['load_before'][0]:.2f}")

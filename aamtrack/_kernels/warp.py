@@ -158,11 +158,22 @@ def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_ba
     m = app.shape[1]
     for p in range(D):
         e[p] = tex[p] - mean[p]
-    for j in range(m):
+    j = 0
+    while j + 4 <= m:  # four coefficients per pass over e: four sums in flight, each still in the order of p
+        a0 = a1 = a2 = a3 = 0.0
+        for p in range(D):
+            ep = e[p]
+            a0 += app[p, j] * ep
+            a1 += app[p, j + 1] * ep
+            a2 += app[p, j + 2] * ep
+            a3 += app[p, j + 3] * ep
+        coef[j], coef[j + 1], coef[j + 2], coef[j + 3] = a0, a1, a2, a3
+        j += 4
+    for jj in range(j, m):
         acc = 0.0
         for p in range(D):
-            acc += app[p, j] * e[p]
-        coef[j] = acc
+            acc += app[p, jj] * e[p]
+        coef[jj] = acc
     err = 0.0
     for p in range(D):
         acc = e[p]
@@ -321,15 +332,34 @@ def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, R, b, mean, a
     Returns |e|^2 / D of the last stage's residual (before its update).
     """
     q_new = np.empty_like(q)
+    rows = np.empty(free.shape[0], np.int64)  # the rows to apply: a pinned parameter (the tracker's held shape
+    n_rows = 0                                # units) is not updated, and its row is not computed
+    for a in range(free.shape[0]):
+        if lo[free[a]] != hi[free[a]]:
+            rows[n_rows] = a
+            n_rows += 1
+    D = e.shape[0]
     err = 0.0
     for s in range(R.shape[0]):
         err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
         for a in range(free.shape[0]):
-            if lo[free[a]] == hi[free[a]]:  # a pinned parameter (the tracker's held shape units): no row to apply
-                delta[a] = 0.0
-                continue
+            delta[a] = 0.0
+        k = 0
+        while k + 4 <= n_rows:  # four rows per pass over e: four sums in flight, each still in the order of p
+            r0, r1, r2, r3 = rows[k], rows[k + 1], rows[k + 2], rows[k + 3]
+            a0, a1, a2, a3 = b[s, r0], b[s, r1], b[s, r2], b[s, r3]
+            for p in range(D):
+                ep = e[p]
+                a0 += R[s, r0, p] * ep
+                a1 += R[s, r1, p] * ep
+                a2 += R[s, r2, p] * ep
+                a3 += R[s, r3, p] * ep
+            delta[r0], delta[r1], delta[r2], delta[r3] = a0, a1, a2, a3
+            k += 4
+        for kk in range(k, n_rows):
+            a = rows[kk]
             acc = b[s, a]
-            for p in range(e.shape[0]):
+            for p in range(D):
                 acc += R[s, a, p] * e[p]
             delta[a] = acc
         _compose(q, free, delta, 1.0, lo, hi, q_new)

@@ -133,7 +133,7 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
                replay: bool = False, fps: float | None = None, progress: bool = True,
                smooth: SmoothConfig | None = DEFAULT_SMOOTH, report: bool = False, notify=None,
                name: str | None = None, pipelined: bool = True, on_frame=None, extra: dict | None = None,
-               tracker: Tracker | None = None) -> dict:
+               tracker: Tracker | None = None, decode_threads: int | None = None) -> dict:
     """Track one input and write its outputs; returns the summary. The input and the output folder are checked
     before the work; every output is written under a temporary name and all are committed together at the
     end, so a failed or interrupted run leaves nothing behind (and earlier outputs as they were).
@@ -143,13 +143,14 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
     name: stem of the output files (default: the input's, see :func:`output_base`). pipelined: decode ahead and
     write in threads (False: every stage in this thread; the same outputs). on_frame: called with 1 per frame
     (a batch's overall progress). extra: more entries for the summary (a batch's options record). tracker: a
-    Tracker for ``model_path`` already made and warmed up (a batch worker keeps one)."""
+    Tracker for ``model_path`` already made and warmed up (a batch worker keeps one). decode_threads: FFmpeg's
+    decoding threads (default: one per core; see ``open_frames``)."""
     t_start = time.perf_counter()
     if report:
         from ..io.report import require_matplotlib
 
         require_matplotlib()
-    source = open_frames(input_, fps=fps)
+    source = open_frames(input_, fps=fps, decode_threads=decode_threads)
     with source, OutputSet(out_dir) as outputs:
         summary = _track(source, outputs, input_, t_start=t_start, model_path=model_path, overlay=overlay,
                          pts=pts, replay=replay, progress=progress, smooth=smooth, report=report, notify=notify,

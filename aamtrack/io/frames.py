@@ -205,8 +205,10 @@ class VideoFrames(FrameSource):
     one (the count is still made up at the end, with an empty last row).
     """
 
-    def __init__(self, path: str | os.PathLike, *, fps: float | None = None, resize=None):
+    def __init__(self, path: str | os.PathLike, *, fps: float | None = None, resize=None,
+                 decode_threads: int | None = None):
         self.path = Path(path)
+        self._threads = decode_threads
         name = str(path)
         if not self.path.exists():
             raise InputError(f"{name}: no such file")
@@ -217,7 +219,7 @@ class VideoFrames(FrameSource):
         self._user_fps = fps is not None
         if fps is not None:
             _check_fps(fps)
-        cap = self._open_capture(self.path, name)
+        cap = self._open_capture(self.path, name, self._threads)
         try:
             ok = cap.grab()
             if not ok:
@@ -249,9 +251,12 @@ class VideoFrames(FrameSource):
         logger.info("%s: %s", name, self)
 
     @staticmethod
-    def _open_capture(path: Path, name: str) -> cv2.VideoCapture:
+    def _open_capture(path: Path, name: str, threads: int | None = None) -> cv2.VideoCapture:
+        """FFmpeg's capture of ``path``; ``threads``: its decoding threads (None: FFmpeg's choice, one per core;
+        the frames are the same either way)."""
+        params = [] if threads is None else [cv2.CAP_PROP_N_THREADS, int(threads)]
         with opencv_path(path) as cv_name:
-            cap = cv2.VideoCapture(cv_name, cv2.CAP_FFMPEG)
+            cap = cv2.VideoCapture(cv_name, cv2.CAP_FFMPEG, params)
         if not cap.isOpened():
             cap.release()
             raise InputError(f"{name}: not a readable video (FFmpeg cannot open it: not a video, or truncated)")
@@ -265,7 +270,7 @@ class VideoFrames(FrameSource):
         else:
             if self._cap is not None:
                 self._cap.release()
-            cap = self._cap = self._open_capture(self.path, self.name)
+            cap = self._cap = self._open_capture(self.path, self.name, self._threads)
             if not cap.grab():
                 raise InputError(f"{self.name}: video contains no frames on re-reading")
             first_t = _stream_time(cap)
@@ -415,7 +420,8 @@ def _image_files(folder: Path) -> list[Path]:
     return sorted(files, key=lambda p: natural_key(p.name))
 
 
-def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=None) -> FrameSource:
+def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=None,
+                decode_threads: int | None = None) -> FrameSource:
     """Open a video file, a folder of images, a glob pattern or a single image as a :class:`FrameSource`.
 
     Parameters
@@ -430,6 +436,9 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
         presentation timestamps; 25.0 for images.
     resize : (width, height), optional
         Deliver every image resized to this size (INTER_AREA when shrinking, else bilinear).
+    decode_threads : int, optional
+        FFmpeg's decoding threads for a video (default: FFmpeg's choice, one per core). 1 where other
+        processes keep the cores busy (a batch's worker processes): the same frames for less CPU time.
 
     Returns
     -------
@@ -462,4 +471,4 @@ def open_frames(source: str | os.PathLike, *, fps: float | None = None, resize=N
         raise InputError(f"{text}: no such file or folder")
     if path.suffix.lower() in IMAGE_SUFFIXES:
         return ImageFrames([path], name=text, fps=fps, resize=resize)
-    return VideoFrames(path, fps=fps, resize=resize)
+    return VideoFrames(path, fps=fps, resize=resize, decode_threads=decode_threads)

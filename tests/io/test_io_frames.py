@@ -28,6 +28,18 @@ def test_video_is_frame_exact(tmp_path, ext, fourcc):
     assert all(f.image.shape == (HEIGHT, WIDTH, 3) and f.image.dtype == np.uint8 for f in frames)
 
 
+@pytest.mark.parametrize("ext,fourcc", CODECS)
+def test_one_decoding_thread_gives_the_same_frames(tmp_path, ext, fourcc):
+    """A batch's workers decode with one FFmpeg thread: the frames must be the very same, also when read again."""
+    path = make_video(tmp_path / f"clip.{ext}", 40, fourcc=fourcc, seed=SEED)
+    with open_frames(path) as default, open_frames(path, decode_threads=1) as single:
+        want = [(f.index, f.timestamp, f.image) for f in default]
+        for _ in range(2):  # the second pass reopens the capture
+            got = [(f.index, f.timestamp, f.image) for f in single]
+            assert [g[:2] for g in got] == [w[:2] for w in want]
+            assert all(np.array_equal(g[2], w[2]) for g, w in zip(got, want, strict=True))
+
+
 def test_video_reiterates_from_the_start(tmp_path):
     path = make_video(tmp_path / "clip.avi", 9, fourcc="MJPG", seed=SEED)
     with open_frames(path) as source:

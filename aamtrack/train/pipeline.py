@@ -64,21 +64,23 @@ class TrainConfig:
     profile_share: 3D only, also learn the update cascades from copies of this share of the (mirrored) training
     faces turned to new yaw and pitch by rendering (``train.profile``; the appearance comes from the photos only),
     from couple ``profile_from_couple`` on (fresh starts there; the coarser couples learn from the photos only).
-    Measured (3D, helen_train, with the jaw band): pose check (axes grid, held-out faces) video geodesic median
-    7.6 -> 6.2 deg, from the true pose 4.9 -> 3.8; helen_test stills mean NME 0.0545 -> 0.0539, displaced search
-    0.0477 -> 0.0472, cap12 raw 0.0299 -> 0.0292 (about equal). Learned by every couple it cost stills (0.0577 ->
-    0.0642, no band), hence the finest couple only. Caveats: the pose check renders with the same rasteriser, and
-    on helen_test's real turned faces (|yaw| > 20 deg) profiling alone showed no gain.
+    Off by default, by measurement (3D, helen_train, 0.5 from the finest couple, with a 0.15 jaw band): the pose
+    check (axes grid, held-out faces) video geodesic median 7.6 -> 6.2 deg, from the true pose 4.9 -> 3.8, and
+    stills, displaced search and cap12 about equal (0.0545 -> 0.0539, 0.0477 -> 0.0472, raw 0.0299 -> 0.0292),
+    but faces 30 px between the eyes lost more (cap12 small30 +0.006 -> +0.012 over clean) and the pose check
+    renders with the same rasteriser the copies are made by. On every couple it cost stills (0.0577 -> 0.0642).
     n_appearance: appearance modes projected out. pose_only_couples: how many of the coarsest couples update
     the pose only. prior: Gaussian prior on the coefficients of the Jacobian search (``update.prior_weights``).
     ring: 2D only, an outer ring of vertices this far beyond the outline (off: it locked onto static background
     on video). forehead_cut: 3D only, texture triangles above this model y (hairline) are left out.
     skirt: 3D only, a band of texture from Candide's outline out past the jaw line, its ring this share beyond
-    the jaw landmarks ``range(*skirt_jaw)`` (``mesh.skirt``); 0 for none. Measured (3D, helen_train, no
-    profiling): helen_test stills jaw median NME 0.0749 -> 0.0707, mean NME 0.0577 -> 0.0545, share <= 0.05
-    55.8% -> 60.6% (<= 0.08 equal), displaced search 0.0491 -> 0.0477; cap12 raw 0.0279 -> 0.0299 (its brow
-    ends sit lower than dlib's). Around the whole jaw (0..16) the cap12 brows went 0.019 -> 0.044, hence the
-    lower jaw (3..13). The 2D model's analogous outer ring (``ring``) did not help its stills (0.0519 -> 0.0580).
+    the jaw landmarks ``range(*skirt_jaw)`` (``mesh.skirt``); 0 for none. Measured (3D, helen_train; helen_test
+    stills / displaced search / cap12 raw / cap12 blurred minus clean): none 0.0577 (median 0.0457, jaw median
+    0.0749) / 0.0491 / 0.0279 / +0.016; 0.08: 0.0567 (0.0440, 0.0707) / 0.0477 / 0.0293 / +0.017; 0.15: 0.0545
+    (0.0443, 0.0707) / 0.0477 / 0.0299 / +0.031 -- a wider band leans on a contour that blur takes away (with
+    blurred training copies, ``blur_share`` 0.15: +0.034). Around the whole jaw (0..16) cap12's brow ends moved
+    (brows 0.019 -> 0.044), hence the lower jaw (3..13). The 2D model's outer ring (``ring``) did not help its
+    stills (0.0519 -> 0.0580).
     n_pca: 2D only, the most PCA shape modes kept (97% of the variance at most).
     n_corrective: 3D only, corrective shape units learned from what Candide cannot fit of the labelled points
     (``mesh.corrective``); 0 for the plain Candide model. 20 fit the labels more closely than the 2D model (2.27 vs
@@ -96,7 +98,7 @@ class TrainConfig:
     n_starts: int = 6
     mirror: bool = True
     blur_share: float = 0.0
-    profile_share: float = 0.5
+    profile_share: float = 0.0
     profile_from_couple: int = 2
     n_appearance: int = 8
     pose_only_couples: int = 1
@@ -105,7 +107,7 @@ class TrainConfig:
     map_refine_rounds: int = 2
     map_refine_images: int = 300
     forehead_cut: float = 0.55
-    skirt: float = 0.15
+    skirt: float = 0.08
     skirt_jaw: tuple = (3, 14)
     n_pca: int = 20
     n_corrective: int = 20

@@ -13,6 +13,7 @@ texture map, not ``ShapeModel.triangles`` (the mesh that is drawn and exported s
 from __future__ import annotations
 
 from collections import Counter, defaultdict
+from dataclasses import replace
 
 import numpy as np
 
@@ -78,9 +79,9 @@ def with_skirt(sm: ShapeModel, texture_triangles: np.ndarray, band: float, jaw: 
         return np.concatenate([arr, np.einsum("rv,kvd->krd", E, arr)], axis=1)
 
     ring = E @ sm.mean
-    centre = (L @ sm.mean).mean(0)
-    loop = outline_loop(texture_triangles)
     lm = L @ sm.mean
+    centre = lm.mean(0)
+    loop = outline_loop(texture_triangles)
     jaw_top = min(lm[jaw[0], 1], lm[jaw[-1], 1])
     below = loop[sm.mean[loop, 1] <= jaw_top + 0.5 * (sm.mean[loop, 1].max() - jaw_top)]
 
@@ -90,8 +91,6 @@ def with_skirt(sm: ShapeModel, texture_triangles: np.ndarray, band: float, jaw: 
     t_in, t_out = param(sm.mean[below]), param(ring)
     o_in, o_out = np.argsort(t_in), np.argsort(t_out)
     tris = _strip(below[o_in], n_v + o_out, t_in[o_in], t_out[o_out])
-    out = ShapeModel(
-        kind=sm.kind, mean=np.vstack([sm.mean, ring]), shape_units=extend(sm.shape_units), basis=extend(sm.basis),
-        triangles=sm.triangles, landmark_map=np.hstack([L, np.zeros((68, len(E)))]), shape_names=sm.shape_names,
-        coef_names=sm.coef_names, coef_lo=sm.coef_lo, coef_hi=sm.coef_hi, shape_sd=sm.shape_sd)
+    out = replace(sm, mean=np.vstack([sm.mean, ring]), shape_units=extend(sm.shape_units), basis=extend(sm.basis),
+                  landmark_map=np.hstack([L, np.zeros((68, len(E)))]))
     return out, tris

@@ -399,9 +399,10 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         for k in range(len(config.couples)):
             r = factors[k][i]
             feats[k][i] = lv.get(r)
-            tex[k].append(sample_texture(feats[k][i], r, level_shift(r), mean3d, basis, P[i], frames[k],
-                                         features.mode))
-    textures = [Texture(f, *learn_appearance(np.array(t[:n_sharp]), n_modes=config.n_appearance, mode=features.mode))
+            if i < n_sharp:  # the appearance comes from the photos (and mirrors) only, not the made copies
+                tex[k].append(sample_texture(feats[k][i], r, level_shift(r), mean3d, basis, P[i], frames[k],
+                                             features.mode))
+    textures = [Texture(f, *learn_appearance(np.array(t), n_modes=config.n_appearance, mode=features.mode))
                 for f, t in zip(frames, tex)]
     del tex
     t_tex = time.perf_counter() - t0 - t_shape - t_det
@@ -414,11 +415,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     join = min(config.profile_from_couple, len(config.couples) - 1)
     if n_turned and join > 0:  # the turned copies join at a finer couple
         late = (np.arange(n_real, len(P)), det_deltas, join)
-        starts, owner = perturbed_starts(P[:n_real], free_all, det_deltas, sm.spreads(), width, lo, hi,
-                                         n_per=config.n_starts, rng=rng)
-    else:
-        starts, owner = perturbed_starts(P, free_all, det_deltas, sm.spreads(), width, lo, hi,
-                                         n_per=config.n_starts, rng=rng)
+    starts, owner = perturbed_starts(P[:n_real] if late else P, free_all, det_deltas, sm.spreads(), width, lo, hi,
+                                     n_per=config.n_starts, rng=rng)
     if config.update == "cascade":
         couples, Pfinal, owner = _cascade_couples(feats, factors, P, pts, owner_group, starts, owner, sm, textures,
                                                   frames, free_all, lo, hi, config, progress, record, rng, late)

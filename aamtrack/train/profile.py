@@ -60,8 +60,9 @@ def profile_face(image: np.ndarray, p: np.ndarray, sm: ShapeModel, rx: float, ry
     mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)),
                       iterations=max(1, int(0.02 * face_w)))
     blurred = cv2.GaussianBlur(image, (0, 0), max(1.0, face_w / 6.0))
+    inside = mask.astype(bool)
     background = image.copy()
-    background[mask.astype(bool)] = blurred[mask.astype(bool)]
+    background[inside] = blurred[inside]
     out, _ = render_mesh(image, src_uv, dst_uv, depth, triangles, background)
     return out, np.r_[q_new, sigma], sm.landmark_map @ dst_uv
 

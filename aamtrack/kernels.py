@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels import patches as _p
 from ._kernels import warp as _k
 
 F32, F64, I32, I64 = np.float32, np.float64, np.int32, np.int64
@@ -129,3 +130,28 @@ def accumulate_gradient(image, scale: float, shift: float, shape3d, basis, q0, f
                             _in(q0, F64, 1, "q0"), _in(free, I64, 1, "free"), _in(steps, F64, 2, "steps"),
                             _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode),
                             _out(G, F64, 2, "G"), _out(e0, F64, 1, "e0"))
+
+
+def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells: int, cell: int, bins: int,
+                         floor: float, out) -> np.ndarray:
+    """out (L, cells * cells * bins) float32 <- the orientation histograms of the points pts (L, 2) (frame pixels)
+    (``aamtrack._kernels.patches``) on the grey ``image`` (H, W) float32 resampled by ``scale``. ``frame`` (2, 2):
+    a grid step (du, dv) lies at (du, dv) @ frame frame pixels."""
+    f = np.asarray(frame, dtype=F64)
+    _p._descriptors(_in(image, F32, 2, "image"), _in(pts, F64, 2, "pts"), float(scale), float(shift), f[0, 0],
+                    f[1, 0], f[0, 1], f[1, 1], int(cells), int(cell), int(bins), float(floor),
+                    _out(out, F32, 2, "out"))
+    return out
+
+
+def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, regressors, biases, *,
+                     cells: int, cell: int, bins: int, floor: float, feat) -> np.ndarray:
+    """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
+    float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``; feat (L, cells * cells *
+    bins) float32 scratch."""
+    _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
+                         _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
+                         _in(basis, F32, 3, "basis"), _in(regressors, F32, 3, "regressors"),
+                         _in(biases, F64, 2, "biases"), int(cells), int(cell), int(bins), float(floor),
+                         _out(feat, F32, 2, "feat"))
+    return pts

@@ -1,0 +1,192 @@
+"""Compiled local descriptors at landmarks: a histogram of gradient orientations (HOG/SIFT-like) of a square patch
+around each point, sampled on a grid in the face's own frame (rotated and scaled with it), so the descriptor of a
+landmark does not change when the face turns in the image plane or changes size (Xiong & De la Torre 2013,
+supervised descent, regress on SIFT at the landmarks; here a lighter HOG made in one pass).
+
+Per point: (cells * cell + 2)^2 bilinear samples of the grey image; central differences inside; each interior
+sample adds its gradient magnitude to the two orientation bins (of ``bins`` over 360 degrees) nearest its angle,
+in its cell; the point's cells * cells * bins histogram is L2-normalised (with a floor, so a flat patch stays
+near zero), clipped at 0.2 and scaled back to its norm before clipping (SIFT's step against single strong edges).
+
+Grey levels rather than the search's own gradient feature image (edge-structure orientations, blurred): read from
+that, the same cascade measured worse on helen_test (mean NME 0.0492 against 0.0455, prototype, 4 stages).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ._flags import NJIT
+
+CLIP = 0.2
+
+
+@numba.njit(**NJIT)
+def _bilinear(img, x, y):
+    H, W = img.shape
+    if x < 0.0:
+        x = 0.0
+    elif x > W - 1.0:
+        x = W - 1.0
+    if y < 0.0:
+        y = 0.0
+    elif y > H - 1.0:
+        y = H - 1.0
+    x0 = min(int(x), W - 2) if W > 1 else 0
+    y0 = min(int(y), H - 2) if H > 1 else 0
+    fx = x - x0
+    fy = y - y0
+    x1 = min(x0 + 1, W - 1)
+    y1 = min(y0 + 1, H - 1)
+    top = img[y0, x0] + fx * (img[y0, x1] - img[y0, x0])
+    bot = img[y1, x0] + fx * (img[y1, x1] - img[y1, x0])
+    return top + fy * (bot - top)
+
+
+@numba.njit(**NJIT)
+def _atan2(y, x):
+    """atan2 to about 1e-5 radians (tested): reduction to an angle in [0, pi/4] and an odd polynomial of degree
+    11 for atan there; enough for soft binning, and cheaper than libm's exact atan2."""
+    ax = abs(x)
+    ay = abs(y)
+    if ax == 0.0 and ay == 0.0:
+        return 0.0
+    swap = ay > ax
+    t = ax / ay if swap else ay / ax
+    t2 = t * t
+    a = t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332
+                                                                                          - t2 * 0.01172120)))))
+    if swap:
+        a = 0.5 * math.pi - a
+    if x < 0.0:
+        a = math.pi - a
+    if y < 0.0:
+        a = -a
+    return a
+
+
+@numba.njit(**NJIT)
+def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, floor, out):
+    """out (L, cells * cells * bins) float32 <- descriptors of the points pts (L, 2) (frame pixels) on img, a
+    level resampled by ``scale`` (frame x at scale * x + shift). A sample at grid offset (du, dv) (in samples,
+    grid centred on the point) lies at pts + (a00 du + a01 dv, a10 du + a11 dv) frame pixels."""
+    L = pts.shape[0]
+    H, W = img.shape
+    n = cells * cell
+    G = n + 2
+    c0 = 0.5 * (G - 1)
+    patch = np.empty((G, G), np.float32)
+    per = cells * cells * bins
+    to_bin = bins / (2.0 * math.pi)
+    ux, uy, vx, vy = scale * a00, scale * a10, scale * a01, scale * a11  # grid steps in level pixels
+    ext_x = c0 * (abs(ux) + abs(vx))
+    ext_y = c0 * (abs(uy) + abs(vy))
+    for li in range(L):
+        cx = scale * pts[li, 0] + shift
+        cy = scale * pts[li, 1] + shift
+        inside = cx - ext_x >= 0.0 and cx + ext_x < W - 1.0 and cy - ext_y >= 0.0 and cy + ext_y < H - 1.0
+        for i in range(G):
+            dv = i - c0
+            rx = cx + vx * dv - ux * c0
+            ry = cy + vy * dv - uy * c0
+            for j in range(G):
+                x = rx + ux * j
+                y = ry + uy * j
+                if inside:  # no clamping: the whole grid is in the image
+                    x0 = int(x)
+                    y0 = int(y)
+                    fx = x - x0
+                    fy = y - y0
+                    top = img[y0, x0] + fx * (img[y0, x0 + 1] - img[y0, x0])
+                    bot = img[y0 + 1, x0] + fx * (img[y0 + 1, x0 + 1] - img[y0 + 1, x0])
+                    patch[i, j] = top + fy * (bot - top)
+                else:
+                    patch[i, j] = _bilinear(img, x, y)
+        o = out[li]
+        for k in range(per):
+            o[k] = 0.0
+        for ci in range(cells):
+            for ii in range(cell):
+                i = 1 + ci * cell + ii
+                for cj in range(cells):
+                    base = (ci * cells + cj) * bins
+                    for jj in range(cell):
+                        j = 1 + cj * cell + jj
+                        gx = patch[i, j + 1] - patch[i, j - 1]
+                        gy = patch[i + 1, j] - patch[i - 1, j]
+                        mag = math.sqrt(gx * gx + gy * gy)
+                        if mag == 0.0:
+                            continue
+                        b = (_atan2(gy, gx) + math.pi) * to_bin
+                        b0 = int(b)
+                        f = b - b0
+                        if b0 >= bins:
+                            b0 -= bins
+                        b1 = b0 + 1
+                        if b1 == bins:
+                            b1 = 0
+                        o[base + b0] += mag * (1.0 - f)
+                        o[base + b1] += mag * f
+        # normalise, clip, and bring back to the norm before clipping (the floor keeps a flat patch's noise
+        # small, and clipping must not undo that)
+        ss = 0.0
+        for k in range(per):
+            ss += o[k] * o[k]
+        norm = math.sqrt(ss)
+        inv = 1.0 / (norm + floor)
+        pre = norm * inv
+        ss = 0.0
+        for k in range(per):
+            v = o[k] * inv
+            if v > CLIP:
+                v = CLIP
+            o[k] = v
+            ss += v * v
+        if ss > 0.0:
+            inv = pre / math.sqrt(ss)
+            for k in range(per):
+                o[k] = o[k] * inv
+
+
+@numba.njit(**NJIT)
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, cells, cell, bins, floor, feat):
+    """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
+    similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
+    descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
+    2 halves[k] / (cells * cell + 1) reference units, each point's descriptor projected on the stage's basis
+    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + b[k]) @ M per point."""
+    L = pts.shape[0]
+    side = cells * cell
+    n2 = 0.0
+    for li in range(L):
+        n2 += ref[li, 0] * ref[li, 0] + ref[li, 1] * ref[li, 1]
+    for k in range(halves.shape[0]):
+        mx = 0.0
+        my = 0.0
+        for li in range(L):
+            mx += pts[li, 0]
+            my += pts[li, 1]
+        mx /= L
+        my /= L
+        a = 0.0
+        c = 0.0
+        for li in range(L):
+            dx = pts[li, 0] - mx
+            dy = pts[li, 1] - my
+            a += ref[li, 0] * dx + ref[li, 1] * dy
+            c += ref[li, 0] * dy - ref[li, 1] * dx
+        a /= n2
+        c /= n2
+        step = 2.0 * halves[k] / (side + 1)
+        _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
+                     feat)
+        z = np.dot(feat - basis_mean[k], basis[k])
+        d = np.dot(R[k], z.reshape(-1))
+        for li in range(L):
+            ux = d[2 * li] + b[k, 2 * li]
+            uy = d[2 * li + 1] + b[k, 2 * li + 1]
+            pts[li, 0] += ux * a - uy * c
+            pts[li, 1] += ux * c + uy * a

@@ -1,0 +1,110 @@
+"""The landmark descriptor kernel against a slow, obvious numpy reference, and the invariances it is built for."""
+
+import numpy as np
+
+from aamtrack._kernels.patches import CLIP
+from aamtrack.kernels import landmark_descriptors
+
+SEED = 11
+
+
+def reference_descriptors(image, scale, shift, pts, frame, cells, cell, bins, floor):
+    """Per point: sample the grid (scipy-free bilinear, edge-clamped), central differences, magnitude-weighted
+    linear orientation binning per cell, normalise with a floor, clip, restore the norm."""
+    H, W = image.shape
+    G = cells * cell + 2
+    c0 = 0.5 * (G - 1)
+    out = np.zeros((len(pts), cells * cells * bins))
+    dv, du = np.mgrid[0:G, 0:G] - c0
+    for li, (px, py) in enumerate(pts):
+        off = np.stack([du.ravel(), dv.ravel()], 1) @ frame
+        x = np.clip(scale * (px + off[:, 0]) + shift, 0, W - 1)
+        y = np.clip(scale * (py + off[:, 1]) + shift, 0, H - 1)
+        x0 = np.minimum(np.floor(x).astype(int), W - 2)
+        y0 = np.minimum(np.floor(y).astype(int), H - 2)
+        fx, fy = x - x0, y - y0
+        v = (image[y0, x0] * (1 - fx) * (1 - fy) + image[y0, x0 + 1] * fx * (1 - fy)
+             + image[y0 + 1, x0] * (1 - fx) * fy + image[y0 + 1, x0 + 1] * fx * fy).reshape(G, G)
+        gx = v[1:-1, 2:] - v[1:-1, :-2]
+        gy = v[2:, 1:-1] - v[:-2, 1:-1]
+        mag = np.hypot(gx, gy)
+        b = (np.arctan2(gy, gx) + np.pi) / (2 * np.pi) * bins
+        b0 = np.floor(b).astype(int)
+        f = b - b0
+        h = np.zeros((cells, cells, bins))
+        for i in range(G - 2):
+            for j in range(G - 2):
+                h[i // cell, j // cell, b0[i, j] % bins] += mag[i, j] * (1 - f[i, j])
+                h[i // cell, j // cell, (b0[i, j] + 1) % bins] += mag[i, j] * f[i, j]
+        h = h.ravel()
+        norm = np.linalg.norm(h)
+        h = h / (norm + floor)
+        pre = np.linalg.norm(h)
+        h = np.minimum(h, CLIP)
+        if np.linalg.norm(h) > 0:
+            h *= pre / np.linalg.norm(h)
+        out[li] = h
+    return out
+
+
+def test_descriptors_match_reference():
+    rng = np.random.default_rng(SEED)
+    image = (rng.random((90, 120)) * 255).astype(np.float32)
+    image = (image + np.roll(image, 1, 0) + np.roll(image, 1, 1)) / 3  # some spatial structure
+    pts = np.column_stack([rng.uniform(-5, 125, 12), rng.uniform(-5, 95, 12)])  # some patches cross the border
+    a = 0.4
+    frame = 1.3 * np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    out = np.empty((12, 3 * 3 * 8), np.float32)
+    landmark_descriptors(image, 0.8, -0.1, pts, frame, cells=3, cell=4, bins=8, floor=20.0, out=out)
+    ref = reference_descriptors(image.astype(np.float64), 0.8, -0.1, pts, frame, 3, 4, 8, 20.0)
+    assert np.abs(out - ref).max() < 1e-4  # float32 sums of the same terms
+
+
+def test_flat_patch_gives_small_descriptor_and_edges_a_unit_one():
+    img = np.full((60, 60), 100.0, np.float32)
+    img[:, 30:] += 0.2  # a faint step: below the floor of 1 grey level per sample
+    strong = np.full((60, 60), 50.0, np.float32)
+    strong[:, 30:] = 200.0
+    out = np.empty((1, 72), np.float32)
+    pts = np.array([[30.0, 30.0]])
+    kw = dict(cells=3, cell=5, bins=8, floor=225.0)
+    landmark_descriptors(img, 1.0, 0.0, pts, np.eye(2), out=out, **kw)
+    assert np.linalg.norm(out) < 0.05  # a flat patch stays near zero
+    landmark_descriptors(strong, 1.0, 0.0, pts, np.eye(2), out=out, **kw)
+    assert np.linalg.norm(out) > 0.85  # a strong edge: norm / (norm + floor), near 1
+
+
+def test_descriptor_turns_with_its_frame():
+    """A patch sampled in a frame turned with the image reads the same descriptor: the rotation invariance the
+    landmark cascade relies on (up to resampling)."""
+    yy, xx = np.mgrid[0:200, 0:200].astype(np.float64)
+
+    def pattern(x, y):
+        return 120 + 60 * np.sin(0.21 * x + 0.05 * y) + 40 * np.cos(0.13 * y - 0.02 * x * y / 50)
+
+    c = np.array([100.0, 100.0])
+    a = np.radians(35)
+    R = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])  # row vectors: u @ R turns u by a
+    # image2(x) = image1(R^-1 (x - c) + c): image1 turned by a about c
+    d = np.stack([xx.ravel() - c[0], yy.ravel() - c[1]], 1) @ R.T
+    img1 = pattern(xx, yy).astype(np.float32)
+    img2 = pattern(d[:, 0] + c[0], d[:, 1] + c[1]).reshape(200, 200).astype(np.float32)
+    p1 = np.array([[110.0, 95.0]])
+    p2 = (p1 - c) @ R + c
+    kw = dict(cells=3, cell=5, bins=8, floor=10.0)
+    o1, o2 = np.empty((1, 72), np.float32), np.empty((1, 72), np.float32)
+    landmark_descriptors(img1, 1.0, 0.0, p1, np.eye(2), out=o1, **kw)
+    landmark_descriptors(img2, 1.0, 0.0, p2, R, out=o2, **kw)
+    other = np.empty((1, 72), np.float32)
+    landmark_descriptors(img2, 1.0, 0.0, p2, np.eye(2), out=other, **kw)
+    assert np.abs(o1 - o2).max() < 0.05  # same patch in its turned frame: equal up to interpolation
+    assert np.abs(o1 - other).max() > 0.2  # read in the image's axes instead: different
+
+
+def test_fast_atan2_is_close_to_math_atan2():
+    from aamtrack._kernels.patches import _atan2
+
+    rng = np.random.default_rng(SEED + 2)
+    for y, x in rng.normal(size=(2000, 2)) * np.array([1.0, 3.0]):
+        assert abs(_atan2(y, x) - np.arctan2(y, x)) < 2e-5
+    assert _atan2(0.0, 0.0) == 0.0 and abs(_atan2(0.0, -1.0) - np.pi) < 1e-6

@@ -132,7 +132,7 @@ class Levels:
         self._cache: dict[float, np.ndarray] = {}
         self._raw: dict[float, np.ndarray] = {1.0: self.gray}
 
-    def _resampled(self, r: float) -> np.ndarray:
+    def resampled(self, r: float) -> np.ndarray:
         """The image resampled by r, from the nearest finer one already made (r/r' of a smaller image; the
         half-pixel mappings compose exactly: r/r' (r' x + r'/2 - 1/2 + 1/2) - 1/2 = r x + r/2 - 1/2)."""
         img = self._raw.get(r)
@@ -154,5 +154,5 @@ class Levels:
     def get(self, r: float) -> np.ndarray:
         img = self._cache.get(r)
         if img is None:
-            img = self._cache[r] = self.features(self._resampled(min(r, 1.0)))
+            img = self._cache[r] = self.features(self.resampled(min(r, 1.0)))
         return img

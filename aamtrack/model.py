@@ -12,6 +12,7 @@ never a crash in compiled code.
 from __future__ import annotations
 
 import json
+import tokenize
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -24,10 +25,11 @@ from .errors import ModelFileError
 from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
 from .io.pts import N_LANDMARKS
+from .landmark_cascade import DescriptorSpec, LandmarkCascade
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3  # 3: the landmark cascade (``landmark_cascade``)
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
 
 
@@ -99,6 +101,7 @@ class Model:
     detector_box_points: np.ndarray
     validator: Validator
     config: dict = field(default_factory=dict)
+    landmark_cascade: LandmarkCascade | None = None
 
     @property
     def kind(self) -> str:
@@ -132,6 +135,12 @@ def save_model(model: Model, path: str | Path) -> None:
     arrays["detector/box_points"] = model.detector_box_points
     v = model.validator
     arrays["validator/weights"], arrays["validator/mean"], arrays["validator/scale"] = v.weights, v.mean, v.scale
+    lc = model.landmark_cascade
+    if lc is not None:
+        # float16: the trained regressors are already rounded to it (``train.landmarks``), and it halves the file
+        arrays["landmarks/ref"], arrays["landmarks/regressors"], arrays["landmarks/biases"] = \
+            lc.ref, lc.regressors.astype(np.float16), lc.biases
+        arrays["landmarks/basis_mean"], arrays["landmarks/basis"] = lc.basis_mean, lc.basis
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
@@ -143,6 +152,9 @@ def save_model(model: Model, path: str | Path) -> None:
         "textures": [list(t.frame.shape) for t in model.textures],
         "couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.couples],
         "validator": {"names": list(v.names), "bias": v.bias},
+        "landmark_cascade": None if lc is None else {"halves": list(lc.halves), "cells": lc.spec.cells,
+                                                     "cell": lc.spec.cell, "bins": lc.spec.bins,
+                                                     "floor": lc.spec.floor},
         "config": model.config,
     }
     arrays["meta"] = np.array(json.dumps(meta))
@@ -183,11 +195,14 @@ class _Checker:
 
         info = self.z.zip.getinfo(f"{key}.npy")
         with self.z.zip.open(info) as fh:
-            version = npformat.read_magic(fh)
-            if version == (1, 0):
-                shape, _, dtype = npformat.read_array_header_1_0(fh)
-            else:
-                shape, _, dtype = npformat.read_array_header_2_0(fh)
+            try:  # numpy parses the header with ast: a damaged one can raise SyntaxError or TokenError too
+                version = npformat.read_magic(fh)
+                if version == (1, 0):
+                    shape, _, dtype = npformat.read_array_header_1_0(fh)
+                else:
+                    shape, _, dtype = npformat.read_array_header_2_0(fh)
+            except (ValueError, SyntaxError, tokenize.TokenError):
+                self.fail(f"'{key}' has an unreadable array header")
             header_len = fh.tell()
         if dtype.hasobject:
             self.fail(f"'{key}' holds Python objects")
@@ -333,7 +348,32 @@ def _read(c: _Checker, meta: dict) -> Model:
     box = c.array("detector/box_points", np.float64, (N_LANDMARKS, 2))
     config = meta.get("config", {})
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
-                 validator=validator, config=config if isinstance(config, dict) else {})
+                 validator=validator, config=config if isinstance(config, dict) else {},
+                 landmark_cascade=_landmark_cascade(c, meta.get("landmark_cascade")))
+
+
+def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
+    if spec is None:
+        return None
+    if not isinstance(spec, dict):
+        c.fail("unreadable landmark cascade settings")
+    try:
+        halves = tuple(float(h) for h in spec["halves"])
+        ds = DescriptorSpec(int(spec["cells"]), int(spec["cell"]), int(spec["bins"]), float(spec["floor"]))
+    except (KeyError, TypeError, ValueError):
+        c.fail("unreadable landmark cascade settings")
+    if not (all(0 < h <= 2 for h in halves) and 1 <= ds.cells <= 16 and 1 <= ds.cell <= 32 and 2 <= ds.bins <= 64
+            and 0 <= ds.floor <= 1e3):
+        c.fail("landmark cascade settings out of range")
+    K = len(halves)
+    basis = c.array("landmarks/basis", np.float32, (K, ds.size, None))
+    d = basis.shape[2]
+    if not 1 <= d <= ds.size:
+        c.fail(f"landmark cascade basis of {d} components for descriptors of {ds.size}")
+    return LandmarkCascade(c.array("landmarks/ref", np.float64, (N_LANDMARKS, 2)), ds, halves,
+                           c.array("landmarks/basis_mean", np.float32, (K, ds.size)), basis,
+                           c.array("landmarks/regressors", np.float32, (K, 2 * N_LANDMARKS, N_LANDMARKS * d)),
+                           c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)))
 
 
 __all__ = ["FORMAT_VERSION", "N_POSE", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

@@ -10,6 +10,7 @@ shape units (the tracker's held estimate of the person) by setting both their bo
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -96,9 +97,11 @@ class Searcher:
         return int(n_it)
 
     def fit(self, levels: Levels, p0: np.ndarray, shape_params: np.ndarray | None = None, *,
-            factors: list[float] | None = None, first: int = 0) -> FitResult:
+            factors: list[float] | None = None, first: int = 0, landmarks: bool = True) -> FitResult:
         """Search from p0 (n_params,) on a frame's ``levels``, couples ``first``..last, each at the resampling
-        ``factors[k]`` (default: from p0's face size), with the shape units pinned to ``shape_params`` if given."""
+        ``factors[k]`` (default: from p0's face size), with the shape units pinned to ``shape_params`` if given;
+        then the landmark cascade on the result (``refine_landmarks``) unless ``landmarks`` is False (a caller
+        choosing among several fits refines only the one it keeps)."""
         p = np.array(p0, dtype=np.float64)
         if len(p) != self.n_params:
             raise ValueError(f"search vector of {len(p)} values, the model has {self.n_params}")
@@ -109,8 +112,24 @@ class Searcher:
                       for k in range(first, len(self.model.couples)))
         stats = self.statistics(levels, p, factors[-1])
         verts = self.project(p)
-        return FitResult(p=p, landmarks=self.model.shape.landmark_map @ verts, vertices=verts, residual=stats[0],
-                         iterations=iters, stats=stats, confidence=self.model.validator(stats))
+        res = FitResult(p=p, landmarks=self.model.shape.landmark_map @ verts, vertices=verts, residual=stats[0],
+                        iterations=iters, stats=stats, confidence=self.model.validator(stats))
+        return self.refine_landmarks(levels, res, factors[-1]) if landmarks else res
+
+    def refine_landmarks(self, levels: Levels, res: FitResult, r: float | None = None, *,
+                         last: int = 0) -> FitResult:
+        """The fit with its 68 points moved by the model's landmark cascade (``aamtrack.landmark_cascade``),
+        read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
+        search passes the one it used, whose level is made already); the fit itself when the model has none.
+        The pose, mesh and confidence stay the search's. ``last`` > 0 runs only the cascade's last ``last``
+        stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
+        lc = self.model.landmark_cascade
+        if lc is None:
+            return res
+        if r is None:
+            r = level_factor(res.p[3] * self.width, self.model.couples[-1].face_px)
+        first = max(0, lc.n_stages - last) if last > 0 else 0
+        return replace(res, landmarks=lc.apply(levels.resampled(r), r, res.landmarks, first))
 
     def project(self, p: np.ndarray) -> np.ndarray:
         """(n_vertices, 2) image pixels of the search vector p."""

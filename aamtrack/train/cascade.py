@@ -128,6 +128,8 @@ def ridge_fit(X: np.ndarray, Y: np.ndarray, *, alphas=(0.03, 0.3, 3.0, 30.0, 300
         R = cho_solve(cho_factor(Ac + lam * np.eye(len(Ac)), check_finite=False), Bc, check_finite=False)
         return R.T, ym - xm @ R
 
+    if len(X) < X.shape[1]:
+        return _ridge_dual(Xf, Y, held, alphas)
     m_tr, m_he = moments(~held), moments(held)
     sd = Y.std(0) + 1e-12  # error per output scaled by its spread, so every parameter counts
     errs = []
@@ -137,6 +139,30 @@ def ridge_fit(X: np.ndarray, Y: np.ndarray, *, alphas=(0.03, 0.3, 3.0, 30.0, 300
     best = alphas[int(np.argmin(errs))]
     m_all = tuple(a + b for a, b in zip(m_tr, m_he))
     R, b = solve(m_all, best)
+    return R.astype(np.float32), b, best
+
+
+def _ridge_dual(X: np.ndarray, Y: np.ndarray, held: np.ndarray, alphas) -> tuple[np.ndarray, np.ndarray, float]:
+    """``ridge_fit`` for M < D, in the dual: R = Xc^T (Xc Xc^T + lambda I)^-1 Yc, lambda as in the primal."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    def solve(mask, alpha):
+        Xm = X[mask].astype(np.float64)
+        xm, ym = Xm.mean(0), Y[mask].mean(0)
+        Xc = Xm - xm
+        K = Xc @ Xc.T
+        lam = alpha * np.trace(K) / X.shape[1]
+        A = cho_solve(cho_factor(K + lam * np.eye(len(K)), check_finite=False), Y[mask] - ym, check_finite=False)
+        R = (Xc.T @ A).T
+        return R, ym - xm @ R.T
+
+    sd = Y.std(0) + 1e-12
+    errs = []
+    for alpha in alphas:
+        R, b = solve(~held, alpha)
+        errs.append(float((((X[held] @ R.T + b - Y[held]) / sd) ** 2).mean()))
+    best = alphas[int(np.argmin(errs))]
+    R, b = solve(np.ones(len(X), bool), best)
     return R.astype(np.float32), b, best
 
 

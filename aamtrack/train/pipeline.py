@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable, Iterable
 
 import cv2
@@ -29,6 +29,7 @@ from ..search import STAT_NAMES, Searcher
 from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
 from .detection import box_geometry, training_boxes
 from .profile import profile_faces
+from .landmarks import learn_landmark_cascade
 from .octaves import Octaves, octave_factor
 from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
@@ -84,7 +85,10 @@ class TrainConfig:
     n_pca: 2D only, the most PCA shape modes kept (97% of the variance at most).
     n_corrective: 3D only, corrective shape units learned from what Candide cannot fit of the labelled points
     (``mesh.corrective``); 0 for the plain Candide model. 20 fit the labels more closely than the 2D model (2.27 vs
-    2.33 px on helen_train) and measured better than 12 on cap12 (3D NME 0.0279 vs 0.0302 raw), equal on stills."""
+    2.33 px on helen_train) and measured better than 12 on cap12 (3D NME 0.0279 vs 0.0302 raw), equal on stills.
+    landmark_halves: the landmark cascade's stages (``aamtrack.landmark_cascade``), each its patch half side in
+    outer eye-corner distances; () for none. landmark_starts: made starts per training image (``train.landmarks``).
+    landmark_pca: principal components kept of each point's descriptor (of cells^2 * bins = 72)."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"
@@ -112,6 +116,9 @@ class TrainConfig:
     n_pca: int = 20
     n_corrective: int = 20
     validator_images: int = 600
+    landmark_halves: tuple = (0.22, 0.16, 0.12, 0.1)
+    landmark_starts: int = 16
+    landmark_pca: int = 48
     seed: int = 0
 
     def __post_init__(self):
@@ -194,6 +201,36 @@ class _Fixed:
 
     def get(self, r: float) -> np.ndarray:
         return self.image
+
+
+class _ByFactor:
+    """A ``Levels`` stand-in serving one image's precomputed feature images by resampling factor."""
+
+    def __init__(self, images: dict):
+        self.images = images
+
+    def get(self, r: float) -> np.ndarray:
+        return self.images[r]
+
+
+def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_orig: int, n_sharp: int):
+    """The search's own fits from each training image's Haar box (mirrored images: the mirrored box), as the
+    tracker fits a still: (fits (k, 68, 2), index of the image each belongs to). Images without a box have none."""
+    searcher = Searcher(model)
+    sm = model.shape
+    out, idx = [], []
+    for i in range(n_sharp):
+        x, y, w, h = boxes[i % n_orig]
+        if not np.isfinite(x):
+            continue
+        if i >= n_orig:
+            x = widths[i] - x - w
+        p0 = np.r_[initial_pose(sm, guess_points((x, y, w, h), box_points)), np.zeros(sm.n_shape)]
+        f = [fk[i] for fk in factors]
+        res = searcher.fit(_ByFactor({r: feats[k][i] for k, r in enumerate(f)}), p0, factors=f)
+        out.append(res.landmarks)
+        idx.append(i)
+    return np.array(out).reshape(-1, 68, 2), np.array(idx, np.int64)
 
 
 def _landmarks(sm: ShapeModel, basis: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -394,8 +431,11 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     feats = [[None] * len(gray) for _ in config.couples]
     mean3d = np.ascontiguousarray(sm.mean)
     tex = [[] for _ in config.couples]
+    fine_gray = []  # what the landmark cascade reads: the grey image at the finest couple's resolution
     for i in progress(range(len(gray)), desc="textures", unit="img"):
         lv = Levels(gray[i], features)
+        if i < n_sharp:
+            fine_gray.append(lv.resampled(factors[-1][i]))
         for k in range(len(config.couples)):
             r = factors[k][i]
             feats[k][i] = lv.get(r)
@@ -433,15 +473,33 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         Pfinal = np.array([searcher.fit(_Fixed(feats[-1][i]), starts[m], factors=[f[i] for f in factors]).p
                            for m, i in enumerate(owner)])
     validator = _validator(model, feats[-1], factors[-1], P, Pfinal, owner, pts, rng, config)
-    final_err = nme(_landmarks(sm, basis, Pfinal), pts[owner])
-    n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
+    final_lmk = _landmarks(sm, basis, Pfinal)
+    final_err = nme(final_lmk, pts[owner])
     t_val = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd
-    timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val}
+    landmark_cascade, lmk_record = None, []
+    if config.landmark_halves:
+        fits_det, owner_det = _detection_fits(replace(model, validator=validator), feats, factors, boxes, box_points,
+                                              [g.shape[1] for g in gray], n_orig, n_sharp)
+        if len(fits_det) < n_sharp // 4:  # Haar found few of these faces (synthetic ones): the cascade's own fits
+            sharp = owner < n_sharp
+            fits_det, owner_det = final_lmk[sharp], owner[sharp]
+        log.info("landmark cascade: %d fits to learn from, median NME %.4f", len(fits_det),
+                 float(np.median(nme(fits_det, pts[owner_det]))))
+        landmark_cascade, lmk_record = learn_landmark_cascade(
+            fine_gray, factors[-1][:n_sharp], pts[:n_sharp], fits_det, owner_det, owner_group[:n_sharp],
+            halves=tuple(config.landmark_halves), n_starts=config.landmark_starts, n_components=config.landmark_pca,
+            rng=np.random.default_rng(config.seed + 3), progress=progress)
+    del fine_gray
+    n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
+    t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
+    timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
+               "landmark_s": t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
+           "landmark_stages": lmk_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
            "train_final_nme_median": float(np.median(final_err[:n0])), "timings": timings}
     log.info("training starts: median NME %.4f -> %.4f after the search", cfg["train_start_nme_median"],
              cfg["train_final_nme_median"])
     model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
-                  detector_box_points=box_points, validator=validator, config=cfg)
+                  detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

@@ -21,7 +21,8 @@ def jacobian_model(synth_data):
 
 def _displaced_errors(model, rng, shift):
     """Mean landmark error (px) after a search from the truth displaced by ``shift`` of the face width (random
-    direction), 6 degrees of roll and 6% of scale, on 10 faces the model has not seen."""
+    direction), 6 degrees of roll and 6% of scale, on 10 faces the model has not seen: the search's own points
+    (the landmark cascade after it is left out, so the update matrices are what is compared)."""
     images, points = synth.random_faces(10, rng, size=(220, 220), scale=130.0)
     searcher = Searcher(model)
     sm = model.shape
@@ -33,7 +34,7 @@ def _displaced_errors(model, rng, shift):
         q0[4:6] += shift * np.ptp(pts[:, 0]) * np.array([np.cos(a), np.sin(a)])
         q0[2] += np.radians(6.0) * rng.choice([-1, 1])
         q0[3] *= np.exp(0.06 * rng.choice([-1, 1]))
-        res = searcher.fit(searcher.levels(to_gray32(img)), q0)
+        res = searcher.fit(searcher.levels(to_gray32(img)), q0, landmarks=False)
         before.append(np.linalg.norm(sm.landmarks(q0) - pts, axis=1).mean())
         after.append(np.linalg.norm(res.landmarks - pts, axis=1).mean())
     return np.mean(before), np.mean(after)
@@ -66,3 +67,20 @@ def test_validator_tells_faces_from_non_faces(synth_model):
             non_face.append(searcher.fit(searcher.levels(blank), q).confidence)
     print("confidence on faces", np.round(face, 3), "max on non-faces", np.round(max(non_face), 3))
     assert min(face) > 0.5 and max(non_face) < 0.5  # every face accepted, every non-face rejected
+
+
+@pytest.mark.parametrize("shape", [(300, 40), (40, 300)])  # the primal (M > D) and the dual (M < D) solve
+def test_ridge_fit_is_the_ridge_solution(shape):
+    """Whichever form solves it, ridge_fit returns the closed-form ridge solution for the alpha it chose."""
+    from aamtrack.train.cascade import ridge_fit
+
+    rng = np.random.default_rng(SEED)
+    M, D = shape
+    X = rng.normal(size=(M, D)) + rng.normal(size=D)
+    Y = X[:, :3] @ rng.normal(size=(3, 2)) + 0.1 * rng.normal(size=(M, 2)) + 4.0
+    R, b, alpha = ridge_fit(X, Y, groups=np.arange(M) // 2)
+    Xc, Yc = X - X.mean(0), Y - Y.mean(0)
+    lam = alpha * np.trace(Xc.T @ Xc) / D
+    R_ref = np.linalg.solve(Xc.T @ Xc + lam * np.eye(D), Xc.T @ Yc).T
+    assert np.abs(R - R_ref).max() < 1e-4 * np.abs(R_ref).max()  # float32 storage
+    assert np.abs(b - (Y.mean(0) - X.mean(0) @ R_ref.T)).max() < 1e-3

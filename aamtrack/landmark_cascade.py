@@ -1,0 +1,114 @@
+"""The last stage of a fit: supervised descent on local descriptors at the 68 landmarks.
+
+The AAM search (``search``) leaves the landmarks where its shape model and texture residual can take them: on
+held-out faces that stops short of the labels (its linear updates underfit, and the model cannot represent every
+labelled shape). This stage moves the 68 points themselves, as supervised descent does (Xiong & De la Torre,
+CVPR 2013: a cascade of linear regressions from SIFT at the current points to the remaining displacement):
+
+    x <- x + (R_k phi(I, x) + b_k) @ M(x),  k = 1..K
+
+phi: the orientation histograms of a patch around each point (``aamtrack._kernels.patches``), sampled in the
+face's frame; M(x) = s R: the similarity that takes the reference shape (centred, outer eye corners 1 apart and
+level) to the current points, so R_k learns displacements in face units whatever the face's size and roll. Stage
+k+1 is learned on the points as stage k left them (``aamtrack.train.landmarks``). The patches are read from the
+grey image at the finest couple's resolution (the face about ``face_px`` wide), which the search has made.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .kernels import landmark_cascade, landmark_descriptors
+
+
+@dataclass(frozen=True)
+class DescriptorSpec:
+    """Each point's descriptor: ``cells`` x ``cells`` cells of ``cell`` x ``cell`` samples, ``bins`` orientation
+    bins over 360 degrees; ``floor`` grey levels of gradient per sample below which a patch counts as flat."""
+
+    cells: int = 3
+    cell: int = 3
+    bins: int = 8
+    floor: float = 1.0
+
+    @property
+    def size(self) -> int:
+        return self.cells * self.cells * self.bins
+
+    @property
+    def side(self) -> int:
+        return self.cells * self.cell
+
+
+def similarity_to(ref: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares similarity pts ~ ref @ M + t for the centred reference ref (n, 2): (M (2, 2) = s R,
+    t (2,)). Closed form (a complex-number regression), no SVD: a few microseconds."""
+    c = pts.mean(0)
+    d = pts - c
+    n2 = float((ref * ref).sum())
+    a = float((ref[:, 0] * d[:, 0] + ref[:, 1] * d[:, 1]).sum()) / n2
+    b = float((ref[:, 0] * d[:, 1] - ref[:, 1] * d[:, 0]).sum()) / n2
+    return np.array([[a, b], [-b, a]]), c
+
+
+@dataclass(frozen=True)
+class LandmarkCascade:
+    """ref (68, 2) float64: the reference shape (centred, outer eye corners 1 apart, level). halves (K,): each
+    stage's patch half side (outer eye-corner distances). basis_mean (K, spec.size) and basis (K, spec.size, d)
+    float32: each stage's principal components of a point's descriptor (the regressors read d numbers per point:
+    a quarter to a half of the weights, which are read from memory every frame). regressors (K, 136, 68 d)
+    float32 and biases (K, 136) float64: stage k's displacement (x_0, y_0, x_1, ...) in reference units."""
+
+    ref: np.ndarray
+    spec: DescriptorSpec
+    halves: tuple
+    basis_mean: np.ndarray
+    basis: np.ndarray
+    regressors: np.ndarray
+    biases: np.ndarray
+
+    def project(self, k: int, phi: np.ndarray) -> np.ndarray:
+        """(..., 68 d) stage k's projection of descriptors phi (..., 68 * spec.size)."""
+        per = self.spec.size
+        z = (phi.reshape(*phi.shape[:-1], -1, per) - self.basis_mean[k]) @ self.basis[k]
+        return z.reshape(*phi.shape[:-1], -1)
+
+    @property
+    def n_stages(self) -> int:
+        return len(self.halves)
+
+    def features(self, image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np.ndarray,
+                 out: np.ndarray | None = None) -> np.ndarray:
+        """(68 * spec.size,) float32 descriptors of pts (68, 2) (frame pixels) on ``image``, the grey frame
+        resampled by ``scale``, in the face frame M (``similarity_to``)."""
+        sp = self.spec
+        if out is None:
+            out = np.empty((len(pts), sp.size), np.float32)
+        step = 2.0 * half / (sp.side + 1)
+        landmark_descriptors(image, scale, 0.5 * scale - 0.5, pts, step * M, cells=sp.cells, cell=sp.cell,
+                             bins=sp.bins, floor=sp.floor * sp.side * sp.side, out=out)
+        return out.reshape(-1)
+
+    def apply(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> np.ndarray:
+        """(68, 2) the points pts (68, 2) (frame pixels) moved by stages ``first``.. (all by default), on
+        ``image`` (the grey frame resampled by ``scale``), in one compiled call (``kernels.landmark_cascade``;
+        ``apply_slow`` is the same in numpy steps)."""
+        sp = self.spec
+        x = np.array(pts, dtype=np.float64)
+        k = slice(first, None)
+        landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
+                         self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells, cell=sp.cell, bins=sp.bins,
+                         floor=sp.floor * sp.side * sp.side, feat=np.empty((len(x), sp.size), np.float32))
+        return x
+
+    def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
+        """``apply`` stage by stage in numpy (what training does; the reference ``apply`` is tested against)."""
+        x = np.array(pts, dtype=np.float64)
+        buf = np.empty((len(x), self.spec.size), np.float32)
+        for k, half in enumerate(self.halves):
+            M, _ = similarity_to(self.ref, x)
+            z = self.project(k, self.features(image, scale, x, half, M, buf))
+            x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M
+        return x

@@ -1,0 +1,132 @@
+"""Learning the landmark cascade (``aamtrack.landmark_cascade``): supervised descent from where the AAM search
+leaves the points to the labels.
+
+Starts: for each training image, one of the AAM's own final fits on it (the cascade's training starts after
+every couple), and ``n_starts`` made ones: the label plus an error drawn from the AAM's fits of other images
+(expressed in the face frame, scaled by a factor in ``error_scale``), turned, scaled and shifted a little. The
+made starts have the shape of the errors the search really makes, in the numbers a regression needs. Each stage
+is a ridge regression of the remaining displacement (face frame) on the descriptors (``cascade.ridge_fit``, its
+strength chosen on held-out images), applied to the starts before the next stage is learned.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from ..landmark_cascade import DescriptorSpec, LandmarkCascade, similarity_to
+from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
+from .cascade import ridge_fit
+
+log = logging.getLogger(__name__)
+
+DEFAULT_SPEC = DescriptorSpec()
+MAX_LIBRARY_NME = 0.15  # AAM fits worse than this are failures, not errors to learn to correct
+
+
+def reference_shape(points: np.ndarray, n_iter: int = 5) -> np.ndarray:
+    """(68, 2) Procrustes mean of points (n, 68, 2): centred, outer eye corners 1 apart, level."""
+    ref = points[0] - points[0].mean(0)
+    for _ in range(n_iter):
+        aligned = []
+        for P in points:
+            M, c = similarity_to(P - P.mean(0), ref)  # ref ~ (P - c_P) @ M + c
+            aligned.append((P - P.mean(0)) @ M + c)
+        ref = np.mean(aligned, 0)
+        ref -= ref.mean(0)
+        d = ref[IBUG_LEFT_EYE_OUTER] - ref[IBUG_RIGHT_EYE_OUTER]
+        a = np.arctan2(d[1], d[0])
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # row vectors: turns d onto +x
+        ref = ref @ rot / np.hypot(*d)
+    return ref
+
+
+def made_starts(truth: np.ndarray, ref: np.ndarray, library: np.ndarray, n_per: int, rng: np.random.Generator,
+                error_scale: tuple = (0.5, 1.5), angle: float = np.radians(4.0), log_scale: float = 0.04,
+                shift: float = 0.04) -> np.ndarray:
+    """(n, n_per, 68, 2) starts around the labels truth (n, 68, 2): each plus a library error (k, 68, 2) (face
+    frame) times a factor in ``error_scale``, turned (sd ``angle`` radians) and scaled (sd ``log_scale``) about
+    its centre and shifted (sd ``shift``, eye distances)."""
+    out = np.empty((len(truth), n_per, 68, 2))
+    for i, P in enumerate(truth):
+        M, c = similarity_to(ref, P)
+        Minv = np.linalg.inv(M)
+        Pn = (P - c) @ Minv
+        for j in range(n_per):
+            e = library[rng.integers(len(library))] * rng.uniform(*error_scale)
+            a = rng.normal(0.0, angle)
+            rot = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) * np.exp(rng.normal(0.0, log_scale))
+            m = Pn.mean(0)
+            Xn = (Pn + e - m) @ rot + m + rng.normal(0.0, shift, 2)
+            out[i, j] = Xn @ M + c
+    return out
+
+
+def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: np.ndarray, fit_owner: np.ndarray,
+                           groups: np.ndarray, *, spec: DescriptorSpec = DEFAULT_SPEC,
+                           halves: tuple = (0.22, 0.16, 0.12, 0.1), n_starts: int = 16,
+                           error_scale: tuple = (0.5, 1.5), n_components: int = 48,
+                           alphas: tuple = (0.3, 1.0, 3.0, 10.0, 30.0), rng: np.random.Generator,
+                           progress=None) -> tuple[LandmarkCascade, list]:
+    """Learn the cascade from training images (grey, each resampled by ``scales[i]``), their labels truth
+    (n, 68, 2) (frame pixels), the AAM's final fits (M, 68, 2) of image ``fit_owner[m]``, and each image's group
+    (an image and its mirror: one side of a hold-out). Each stage projects a point's descriptor on its
+    ``n_components`` principal components (over all points and starts) before the regression. Returns (cascade,
+    per-stage record)."""
+    progress = progress or (lambda it, **_: it)
+    ref = reference_shape(truth)
+    lib, real = [], []
+    err = nme(fits, truth[fit_owner])
+    for i in range(len(truth)):
+        M, _ = similarity_to(ref, truth[i])
+        own = np.flatnonzero((fit_owner == i) & (err < MAX_LIBRARY_NME))
+        if len(own):
+            Minv = np.linalg.inv(M)
+            lib.extend((fits[own] - truth[i]) @ Minv)
+            real.append((i, fits[rng.choice(own)]))
+    lib = np.array(lib)
+    made = made_starts(truth, ref, lib, n_starts, rng, error_scale)
+    owner = np.r_[[i for i, _ in real], np.repeat(np.arange(len(truth)), n_starts)].astype(np.int64)
+    X = np.concatenate([np.array([f for _, f in real]).reshape(-1, 68, 2), made.reshape(-1, 68, 2)])
+    log.info("landmark cascade: %d starts (%d the search's own), %d library errors, median NME %.4f", len(X),
+             len(real), len(lib), float(np.median(nme(X, truth[owner]))))
+    per = spec.size
+    d = min(n_components, per)
+    cascade = LandmarkCascade(ref, spec, (), np.zeros((0, per), np.float32), np.zeros((0, per, d), np.float32),
+                              np.zeros((0, 136, 68 * d), np.float32), np.zeros((0, 136)))
+    Rs, bs, means, bases, record = [], [], [], [], []
+    for k in progress(range(len(halves)), desc="landmark cascade", unit="stage"):
+        F = np.empty((len(X), 68 * spec.size), np.float32)
+        Y = np.empty((len(X), 136))
+        frames = np.empty((len(X), 2, 2))
+        buf = np.empty((68, spec.size), np.float32)
+        for m in range(len(X)):
+            i = owner[m]
+            M, _ = similarity_to(ref, X[m])
+            F[m] = cascade.features(images[i], scales[i], X[m], halves[k], M, buf)
+            Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
+            frames[m] = M
+        sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
+        mu = sample.mean(0)
+        _, sv, Vt = np.linalg.svd(sample - mu, full_matrices=False)
+        mu, B = mu.astype(np.float32), np.ascontiguousarray(Vt[:d].T, dtype=np.float32)
+        Z = ((F.reshape(len(F), 68, per) - mu) @ B).reshape(len(F), 68 * d)
+        del F
+        R, b, alpha = ridge_fit(Z, Y, alphas=alphas, groups=groups[owner], rng=np.random.default_rng(k))
+        R = R.astype(np.float16).astype(np.float32)  # as the model file stores it (half the bytes; ~1e-3 relative)
+        step = (Z @ R.T + b).reshape(-1, 68, 2)
+        del Z
+        X = X + np.einsum("mlj,mjk->mlk", step, frames)
+        Rs.append(R)
+        bs.append(b)
+        means.append(mu)
+        bases.append(B)
+        e = nme(X, truth[owner])
+        record.append({"stage": k, "half": halves[k], "alpha": alpha, "train_nme_median": float(np.median(e)),
+                       "train_nme_mean": float(e.mean()),
+                       "pca_energy": float((sv[:d] ** 2).sum() / max((sv ** 2).sum(), 1e-30))})
+        log.info("landmark stage %d: ridge %g, training starts' NME median %.4f mean %.4f", k, alpha,
+                 float(np.median(e)), float(e.mean()))
+    return LandmarkCascade(ref, spec, tuple(float(h) for h in halves), np.stack(means), np.stack(bases),
+                           np.stack(Rs), np.stack(bs)), record

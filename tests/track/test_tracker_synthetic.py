@@ -30,6 +30,25 @@ def test_tracks_a_written_video_to_a_pixel(moving_video, synth_model):
     assert err.max() < 2.0
 
 
+def test_tracked_frames_run_the_last_landmark_stages_only(moving_video, synth_model):
+    """``landmark_stages_tracked``: the search (pose, mesh, confidence) is the same whichever stages of the landmark
+    cascade run on tracked frames; the detection frame runs them all either way; the points stay within a pixel."""
+    from aamtrack.track.tracker import TrackerConfig
+
+    path, truth = moving_video
+    runs = {}
+    for last in (0, 1):
+        with open_frames(path) as src:
+            runs[last] = list(Tracker(synth_model, config=TrackerConfig(landmark_stages_tracked=last)).track(src))
+    a, b = runs[0], runs[1]
+    assert all(np.array_equal(x.vertices, y.vertices) and x.confidence == y.confidence for x, y in zip(a, b))
+    assert np.array_equal(a[0].landmarks, b[0].landmarks)  # detection: every stage in both
+    assert any(not np.allclose(x.landmarks, y.landmarks) for x, y in zip(a[1:], b[1:]))  # tracked: not the same
+    for run in (a, b):
+        err = np.array([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(run, truth)])
+        assert err.mean() < 1.0  # px, as the default
+
+
 def test_face_leaves_and_comes_back(synth_model):
     frames, truth = synth.moving_face_frames(24, away=range(8, 14))
     results = list(Tracker(synth_model).track(

@@ -52,7 +52,8 @@ class TrackerConfig:
     (``aamtrack.landmark_cascade``) run, from the search's points (0: all of them); detections run all. The
     search from the previous frame leaves its points closer than a detection does, and the later stages (smaller
     patches) do most of the work there: cap12, 3D, raw NME against the dlib reference, search alone 0.0293, last
-    2 stages 0.0240, last 3 0.0230, all 4 0.0227, at about half the cascade's time for 2. (Starting the last
+    1 stage 0.0289, last 2 0.0241, all 4 0.0232 (last 3: 0.0230 with a model trained before), at about half the
+    cascade's time for 2. (Starting the last
     stages from the previous frame's correction instead drifted: 0.60.)"""
 
     min_confidence: float = 0.5

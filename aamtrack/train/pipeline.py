@@ -439,14 +439,14 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     fine_gray = []  # what the landmark cascade reads: the grey image at the finest couple's resolution
     for i in progress(range(len(gray)), desc="textures", unit="img"):
         lv = Levels(gray[i], features)
-        if i < n_sharp:
-            fine_gray.append(lv.resampled(factors[-1][i]))
         for k in range(len(config.couples)):
             r = factors[k][i]
             feats[k][i] = lv.get(r)
             if i < n_sharp:  # the appearance comes from the photos (and mirrors) only, not the made copies
                 tex[k].append(sample_texture(feats[k][i], r, level_shift(r), mean3d, basis, P[i], frames[k],
                                              features.mode))
+        if i < n_sharp:  # after the couples' levels: made first, it would change how the coarser ones are resampled
+            fine_gray.append(lv.resampled(factors[-1][i]))
     textures = [Texture(f, *learn_appearance(np.array(t), n_modes=config.n_appearance, mode=features.mode))
                 for f, t in zip(frames, tex)]
     del tex

@@ -124,7 +124,8 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
         box = tracker.detector.detect(img)
         if box is None:
             continue
-        res, _ = tracker.fit_roi(img, tracker.detection_starts(box))
+        # the mesh's own landmarks (no landmark cascade): the texture is taken where the mesh sits
+        res, _ = tracker.fit_roi(img, tracker.detection_starts(box), landmarks=False)
         if (res.confidence < tracker.config.min_confidence or np.degrees(np.abs(res.p[:3])).max() > max_angle_deg
                 or float(nme(res.landmarks, pts)) > max_nme):
             continue

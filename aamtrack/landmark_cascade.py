@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kernels import landmark_cascade, landmark_descriptors
+from .mesh.landmarks import similarity_fit
 
 
 @dataclass(frozen=True)
@@ -41,16 +42,37 @@ class DescriptorSpec:
     def side(self) -> int:
         return self.cells * self.cell
 
+    @property
+    def patch_floor(self) -> float:
+        """``floor`` over a whole patch (the kernel's normalisation floor)."""
+        return self.floor * self.side * self.side
+
 
 def similarity_to(ref: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The least-squares similarity pts ~ ref @ M + t for the centred reference ref (n, 2): (M (2, 2) = s R,
-    t (2,)). Closed form (a complex-number regression), no SVD: a few microseconds."""
-    c = pts.mean(0)
-    d = pts - c
-    n2 = float((ref * ref).sum())
-    a = float((ref[:, 0] * d[:, 0] + ref[:, 1] * d[:, 1]).sum()) / n2
-    b = float((ref[:, 0] * d[:, 1] - ref[:, 1] * d[:, 0]).sum()) / n2
-    return np.array([[a, b], [-b, a]]), c
+    """The least-squares similarity pts ~ ref @ M + t (``mesh.landmarks.similarity_fit``) as (M (2, 2) = s R,
+    t (2,))."""
+    s, R, t = similarity_fit(ref, pts)
+    return s * R, t
+
+
+def descriptors(spec: DescriptorSpec, image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np.ndarray,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """(68 * spec.size,) float32 descriptors of pts (68, 2) (frame pixels) on ``image``, the grey frame resampled
+    by ``scale``, on a patch of half side ``half`` in the face frame M (``similarity_to``)."""
+    if out is None:
+        out = np.empty((len(pts), spec.size), np.float32)
+    step = 2.0 * half / (spec.side + 1)
+    landmark_descriptors(image, scale, 0.5 * scale - 0.5, pts, step * M, cells=spec.cells, cell=spec.cell,
+                         bins=spec.bins, floor=spec.patch_floor, out=out)
+    return out.reshape(-1)
+
+
+def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """(..., n_points d) each point's descriptor of phi (..., n_points * p) projected on a basis (p, d) about its
+    mean (p,)."""
+    p = len(mean)
+    z = (phi.reshape(*phi.shape[:-1], -1, p) - mean) @ basis
+    return z.reshape(*phi.shape[:-1], -1)
 
 
 @dataclass(frozen=True)
@@ -69,27 +91,9 @@ class LandmarkCascade:
     regressors: np.ndarray
     biases: np.ndarray
 
-    def project(self, k: int, phi: np.ndarray) -> np.ndarray:
-        """(..., 68 d) stage k's projection of descriptors phi (..., 68 * spec.size)."""
-        per = self.spec.size
-        z = (phi.reshape(*phi.shape[:-1], -1, per) - self.basis_mean[k]) @ self.basis[k]
-        return z.reshape(*phi.shape[:-1], -1)
-
     @property
     def n_stages(self) -> int:
         return len(self.halves)
-
-    def features(self, image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np.ndarray,
-                 out: np.ndarray | None = None) -> np.ndarray:
-        """(68 * spec.size,) float32 descriptors of pts (68, 2) (frame pixels) on ``image``, the grey frame
-        resampled by ``scale``, in the face frame M (``similarity_to``)."""
-        sp = self.spec
-        if out is None:
-            out = np.empty((len(pts), sp.size), np.float32)
-        step = 2.0 * half / (sp.side + 1)
-        landmark_descriptors(image, scale, 0.5 * scale - 0.5, pts, step * M, cells=sp.cells, cell=sp.cell,
-                             bins=sp.bins, floor=sp.floor * sp.side * sp.side, out=out)
-        return out.reshape(-1)
 
     def apply(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> np.ndarray:
         """(68, 2) the points pts (68, 2) (frame pixels) moved by stages ``first``.. (all by default), on
@@ -99,8 +103,9 @@ class LandmarkCascade:
         x = np.array(pts, dtype=np.float64)
         k = slice(first, None)
         landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
-                         self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells, cell=sp.cell, bins=sp.bins,
-                         floor=sp.floor * sp.side * sp.side, feat=np.empty((len(x), sp.size), np.float32))
+                         self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells,
+                         cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
+                         feat=np.empty((len(x), sp.size), np.float32))
         return x
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
@@ -109,6 +114,7 @@ class LandmarkCascade:
         buf = np.empty((len(x), self.spec.size), np.float32)
         for k, half in enumerate(self.halves):
             M, _ = similarity_to(self.ref, x)
-            z = self.project(k, self.features(image, scale, x, half, M, buf))
+            z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf), self.basis_mean[k],
+                                    self.basis[k])
             x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M
         return x

@@ -46,14 +46,17 @@ N_CANDIDE_SKIN_TRIANGLES = 168
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Least-squares similarity dst ~ s * src @ R + t for (n, 2) point sets; returns (s, R (2, 2), t (2,))."""
+    """Least-squares similarity dst ~ s * src @ R + t for (n, 2) point sets (R a rotation, never a reflection);
+    returns (s, R (2, 2), t (2,)). Closed form, a complex-number regression: s R = [[p, q], [-q, p]] with
+    p = sum(a . b) / |a|^2 and q = sum(a x b) / |a|^2 for the centred sets a, b (the same as the SVD solution with
+    its reflection guard, to 1e-13, and a few times faster: the landmark cascade's training calls it per start)."""
     ms, md = src.mean(0), dst.mean(0)
     a, b = src - ms, dst - md
-    U, S, Vt = np.linalg.svd(a.T @ b)
-    d = np.sign(np.linalg.det(U @ Vt))
-    D = np.diag([1.0, d])
-    R = U @ D @ Vt
-    s = float((S * np.diag(D)).sum() / max((a ** 2).sum(), 1e-12))
+    n2 = max(float((a * a).sum()), 1e-12)
+    p = float((a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]).sum()) / n2
+    q = float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()) / n2
+    s = float(np.hypot(p, q))
+    R = np.array([[p, q], [-q, p]]) / s if s > 0 else np.eye(2)
     return s, R, md - s * ms @ R
 
 

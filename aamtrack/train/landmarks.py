@@ -1,8 +1,8 @@
 """Learning the landmark cascade (``aamtrack.landmark_cascade``): supervised descent from where the AAM search
 leaves the points to the labels.
 
-Starts: for each training image, one of the AAM's own final fits on it (the cascade's training starts after
-every couple), and ``n_starts`` made ones: the label plus an error drawn from the AAM's fits of other images
+Starts: for each training image, one of the search's own fits of it (the caller's: from its Haar box), and
+``n_starts`` made ones: the label plus an error drawn from the AAM's fits of other images
 (expressed in the face frame, scaled by a factor in ``error_scale``), turned, scaled and shifted a little. The
 made starts have the shape of the errors the search really makes, in the numbers a regression needs. Each stage
 is a ridge regression of the remaining displacement (face frame) on the descriptors (``cascade.ridge_fit``, its
@@ -15,9 +15,10 @@ import logging
 
 import numpy as np
 
-from ..landmark_cascade import DescriptorSpec, LandmarkCascade, similarity_to
+from ..landmark_cascade import DescriptorSpec, LandmarkCascade, descriptors, project_descriptors, similarity_to
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
 from .cascade import ridge_fit
+from .shape2d import procrustes_mean
 
 log = logging.getLogger(__name__)
 
@@ -25,21 +26,14 @@ DEFAULT_SPEC = DescriptorSpec()
 MAX_LIBRARY_NME = 0.15  # AAM fits worse than this are failures, not errors to learn to correct
 
 
-def reference_shape(points: np.ndarray, n_iter: int = 5) -> np.ndarray:
-    """(68, 2) Procrustes mean of points (n, 68, 2): centred, outer eye corners 1 apart, level."""
-    ref = points[0] - points[0].mean(0)
-    for _ in range(n_iter):
-        aligned = []
-        for P in points:
-            M, c = similarity_to(P - P.mean(0), ref)  # ref ~ (P - c_P) @ M + c
-            aligned.append((P - P.mean(0)) @ M + c)
-        ref = np.mean(aligned, 0)
-        ref -= ref.mean(0)
-        d = ref[IBUG_LEFT_EYE_OUTER] - ref[IBUG_RIGHT_EYE_OUTER]
-        a = np.arctan2(d[1], d[0])
-        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # row vectors: turns d onto +x
-        ref = ref @ rot / np.hypot(*d)
-    return ref
+def reference_shape(points: np.ndarray) -> np.ndarray:
+    """(68, 2) Procrustes mean of points (n, 68, 2) (``shape2d.procrustes_mean``), centred, turned level and
+    scaled so the outer eye corners are 1 apart."""
+    ref = procrustes_mean(np.asarray(points, float))[0]
+    d = ref[IBUG_LEFT_EYE_OUTER] - ref[IBUG_RIGHT_EYE_OUTER]
+    a = np.arctan2(d[1], d[0])
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # row vectors: turns d onto +x
+    return ref @ rot / np.hypot(*d)
 
 
 def made_starts(truth: np.ndarray, ref: np.ndarray, library: np.ndarray, n_per: int, rng: np.random.Generator,
@@ -93,8 +87,6 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
              len(real), len(lib), float(np.median(nme(X, truth[owner]))))
     per = spec.size
     d = min(n_components, per)
-    cascade = LandmarkCascade(ref, spec, (), np.zeros((0, per), np.float32), np.zeros((0, per, d), np.float32),
-                              np.zeros((0, 136, 68 * d), np.float32), np.zeros((0, 136)))
     Rs, bs, means, bases, record = [], [], [], [], []
     for k in progress(range(len(halves)), desc="landmark cascade", unit="stage"):
         F = np.empty((len(X), 68 * spec.size), np.float32)
@@ -104,14 +96,14 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         for m in range(len(X)):
             i = owner[m]
             M, _ = similarity_to(ref, X[m])
-            F[m] = cascade.features(images[i], scales[i], X[m], halves[k], M, buf)
+            F[m] = descriptors(spec, images[i], scales[i], X[m], halves[k], M, buf)
             Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
             frames[m] = M
         sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
         mu = sample.mean(0)
         _, sv, Vt = np.linalg.svd(sample - mu, full_matrices=False)
         mu, B = mu.astype(np.float32), np.ascontiguousarray(Vt[:d].T, dtype=np.float32)
-        Z = ((F.reshape(len(F), 68, per) - mu) @ B).reshape(len(F), 68 * d)
+        Z = project_descriptors(F, mu, B)
         del F
         R, b, alpha = ridge_fit(Z, Y, alphas=alphas, groups=groups[owner], rng=np.random.default_rng(k))
         R = R.astype(np.float16).astype(np.float32)  # as the model file stores it (half the bytes; ~1e-3 relative)

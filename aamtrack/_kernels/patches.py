@@ -49,36 +49,45 @@ def _bilinear(img, x, y):
 @numba.njit(**NJIT)
 def _atan2(y, x):
     """atan2 to about 1e-5 radians (tested): reduction to an angle in [0, pi/4] and an odd polynomial of degree
-    11 for atan there; enough for soft binning, and cheaper than libm's exact atan2."""
+    11 for atan there; enough for soft binning, and cheaper than libm's exact atan2. Written with selects
+    only (no branches), so a loop over samples calling it is vectorised; atan2(0, 0) = 0."""
     ax = abs(x)
     ay = abs(y)
-    if ax == 0.0 and ay == 0.0:
-        return 0.0
     swap = ay > ax
-    t = ax / ay if swap else ay / ax
+    num = ax if swap else ay
+    den = ay if swap else ax
+    t = num / den if den > 0.0 else num * 0.0
     t2 = t * t
     a = t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332
                                                                                           - t2 * 0.01172120)))))
-    if swap:
-        a = 0.5 * math.pi - a
-    if x < 0.0:
-        a = math.pi - a
-    if y < 0.0:
-        a = -a
-    return a
+    a = 0.5 * math.pi - a if swap else a
+    a = math.pi - a if x < 0.0 else a
+    return -a if y < 0.0 else a
 
 
 @numba.njit(**NJIT)
 def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, floor, out):
     """out (L, cells * cells * bins) float32 <- descriptors of the points pts (L, 2) (frame pixels) on img, a
     level resampled by ``scale`` (frame x at scale * x + shift). A sample at grid offset (du, dv) (in samples,
-    grid centred on the point) lies at pts + (a00 du + a01 dv, a10 du + a11 dv) frame pixels."""
+    grid centred on the point) lies at pts + (a00 du + a01 dv, a10 du + a11 dv) frame pixels.
+
+    Per point, in passes over the patch: the samples; the gradients; magnitudes and orientation bins (one
+    branch-free loop, vectorised); the soft votes into the cells' histograms (a scatter, scalar); the
+    normalisation. (One fused loop with a branchy atan2 took 1.6x as long.)"""
     L = pts.shape[0]
     H, W = img.shape
     n = cells * cell
     G = n + 2
     c0 = 0.5 * (G - 1)
     patch = np.empty((G, G), np.float32)
+    gxs = np.empty(n * n, np.float32)
+    gys = np.empty(n * n, np.float32)
+    mags = np.empty(n * n, np.float64)
+    bs = np.empty(n * n, np.float64)
+    base_of = np.empty(n * n, np.int64)  # first bin of each interior sample's cell
+    for i in range(n):
+        for j in range(n):
+            base_of[i * n + j] = ((i // cell) * cells + j // cell) * bins
     per = cells * cells * bins
     to_bin = bins / (2.0 * math.pi)
     ux, uy, vx, vy = scale * a00, scale * a10, scale * a01, scale * a11  # grid steps in level pixels
@@ -92,10 +101,10 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
             dv = i - c0
             rx = cx + vx * dv - ux * c0
             ry = cy + vy * dv - uy * c0
-            for j in range(G):
-                x = rx + ux * j
-                y = ry + uy * j
-                if inside:  # no clamping: the whole grid is in the image
+            if inside:  # no clamping: the whole grid is in the image
+                for j in range(G):
+                    x = rx + ux * j
+                    y = ry + uy * j
                     x0 = int(x)
                     y0 = int(y)
                     fx = x - x0
@@ -103,33 +112,35 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
                     top = img[y0, x0] + fx * (img[y0, x0 + 1] - img[y0, x0])
                     bot = img[y0 + 1, x0] + fx * (img[y0 + 1, x0 + 1] - img[y0 + 1, x0])
                     patch[i, j] = top + fy * (bot - top)
-                else:
-                    patch[i, j] = _bilinear(img, x, y)
+            else:
+                for j in range(G):
+                    patch[i, j] = _bilinear(img, rx + ux * j, ry + uy * j)
+        for i in range(n):  # central differences at the interior samples
+            for j in range(n):
+                gxs[i * n + j] = patch[i + 1, j + 2] - patch[i + 1, j]
+                gys[i * n + j] = patch[i + 2, j + 1] - patch[i, j + 1]
+        for k in range(n * n):
+            gx = gxs[k]
+            gy = gys[k]
+            mags[k] = math.sqrt(gx * gx + gy * gy)
+            bs[k] = (_atan2(gy, gx) + math.pi) * to_bin
         o = out[li]
         for k in range(per):
             o[k] = 0.0
-        for ci in range(cells):
-            for ii in range(cell):
-                i = 1 + ci * cell + ii
-                for cj in range(cells):
-                    base = (ci * cells + cj) * bins
-                    for jj in range(cell):
-                        j = 1 + cj * cell + jj
-                        gx = patch[i, j + 1] - patch[i, j - 1]
-                        gy = patch[i + 1, j] - patch[i - 1, j]
-                        mag = math.sqrt(gx * gx + gy * gy)
-                        if mag == 0.0:
-                            continue
-                        b = (_atan2(gy, gx) + math.pi) * to_bin
-                        b0 = int(b)
-                        f = b - b0
-                        if b0 >= bins:
-                            b0 -= bins
-                        b1 = b0 + 1
-                        if b1 == bins:
-                            b1 = 0
-                        o[base + b0] += mag * (1.0 - f)
-                        o[base + b1] += mag * f
+        for k in range(n * n):  # each sample's magnitude into the two bins nearest its angle
+            mag = mags[k]
+            if mag == 0.0:
+                continue
+            b = bs[k]
+            b0 = int(b)
+            f = b - b0
+            if b0 >= bins:
+                b0 -= bins
+            b1 = b0 + 1
+            if b1 == bins:
+                b1 = 0
+            o[base_of[k] + b0] += mag * (1.0 - f)
+            o[base_of[k] + b1] += mag * f
         # normalise, clip, and bring back to the norm before clipping (the floor keeps a flat patch's noise
         # small, and clipping must not undo that)
         ss = 0.0

@@ -196,3 +196,82 @@ def test_a_more_confident_turned_fit_replaces_the_upright_one(synth_model):
     assert turned_fit.confidence > 0.001
     assert on.detect_and_fit(image)[0].confidence == turned_fit.confidence
     assert off.detect_and_fit(image)[0].confidence == 0.001
+
+
+
+def _turned_detector(tracker, boxes_at):
+    """The tracker's Haar detector, answering from ``boxes_at(angle, real_boxes)`` instead of its own boxes."""
+    from aamtrack.detector import HaarDetector
+
+    class Steered(HaarDetector):
+        def detect_all(self, gray, angle=0.0, width=0):
+            return boxes_at(angle, super().detect_all(gray, angle, width))
+
+    tracker.detector = Steered()
+    return tracker
+
+
+@pytest.mark.shared_data
+def test_a_face_found_only_in_a_turned_frame_also_tries_the_other_turned_frames():
+    """A helen_test photo turned 30 degrees counter-clockwise, nothing found upright, and a box on the background
+    found first, in the frame turned the wrong way (+30): detect_and_fit also searches the frame turned the
+    other way (-30, where Haar finds the face) and keeps the more confident fit, which is on the face."""
+    import cv2
+
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.metrics import nme
+    from aamtrack.model import load_model
+    from aamtrack.models import default_model_path
+    from conftest import shared_path
+
+    img_path, pts_path = find_pairs(shared_path("300w", "helen_test"))[0]
+    photo, pts = load_pair(img_path, pts_path)
+    H, W = photo.shape[:2]
+    M = cv2.getRotationMatrix2D((W / 2, H / 2), 30.0, 1.0)
+    image = cv2.warpAffine(photo, M, (W, H), borderMode=cv2.BORDER_REFLECT)
+    truth = pts @ M[:, :2].T + M[:, 2]
+    model = load_model(default_model_path("3d"))
+
+    def boxes_at(angle, found):
+        if angle == 0.0:
+            return np.zeros((0, 4))
+        if angle == 30.0:
+            return np.array([[0.0, 0.0, 0.2 * W, 0.2 * W]])  # background in the corner
+        return found
+    tracker = _turned_detector(Tracker(model), boxes_at)
+    assert len(tracker.detector.detect_all(image, -30.0))  # the premise: Haar finds the face turned back
+    assert tracker.detector.find(image)[1] == 30.0  # found first in the wrong frame
+    res, _ = tracker.detect_and_fit(image)
+    assert nme(res.landmarks, truth) < 0.08  # on the face
+    tracker.detector.rolled = (30.0,)  # no other turned frame to try: the corner's fit stays
+    corner, _ = tracker.detect_and_fit(image)
+    assert nme(corner.landmarks, truth) > 0.5
+
+
+@pytest.mark.parametrize("size, turned_kept", [(0.3, False), (0.6, True), (1.0, True)])
+def test_a_small_turned_box_does_not_replace_an_accepted_upright_fit(synth_model, size, turned_kept):
+    """An accepted upright fit (confidence marked down to 0.6, retry on) is replaced by a more confident turned
+    one (marked 0.99) only when the turned box is at least half the upright box's size."""
+    from dataclasses import replace as dc_replace
+
+    class UprightDoubted(Tracker):
+        def fit_detection(self, image, found, shape_params=None):
+            res, t = super().fit_detection(image, found, shape_params)
+            return dc_replace(res, confidence=0.6 if found[1] == 0.0 else 0.99), t
+
+    ref = synth.face_layout()
+    image = synth.render(ref, synth.project2d(ref, np.radians(5), 130, 160, 120), (320, 240))
+    upright = Tracker(synth_model).detector.detect_all(image)
+    assert len(upright)  # the premise: found upright
+
+    def boxes_at(angle, found):  # in the turned frames: the upright box, resized about its centre
+        if angle == 0.0:
+            return found
+        b = upright[:1].copy()
+        b[:, :2] += b[:, 2:] * (1.0 - size) / 2
+        b[:, 2:] *= size
+        return b
+    tracker = _turned_detector(UprightDoubted(synth_model), boxes_at)
+    assert tracker.config.min_confidence <= 0.6 < tracker.config.turned_retry_below  # accepted, and doubted
+    res, _ = tracker.detect_and_fit(image)
+    assert res.confidence == (0.99 if turned_kept else 0.6)

@@ -475,8 +475,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                   detector_box_points=box_points, validator=dummy)
     if Pfinal is None:  # Jacobian models: the validator learns from the search run on the same starts
         searcher = Searcher(model)
-        Pfinal = np.array([searcher.fit(_Fixed(feats[-1][i]), starts[m], factors=[f[i] for f in factors]).p
-                           for m, i in enumerate(owner)])
+        Pfinal = np.array([searcher.fit(_ByFactor({f[i]: feats[k][i] for k, f in enumerate(factors)}), starts[m],
+                                        factors=[f[i] for f in factors]).p for m, i in enumerate(owner)])
     validator = _validator(model, feats[-1], factors[-1], P, Pfinal, owner, pts, rng, config)
     final_lmk = _landmarks(sm, basis, Pfinal)
     final_err = nme(final_lmk, pts[owner])

@@ -38,6 +38,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 import scipy.ndimage
+import scipy.sparse
+import scipy.sparse.linalg
 from scipy.spatial import cKDTree
 
 from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
@@ -87,6 +89,8 @@ class SamplerConfig:
     project: bool = True
     gate: float = 0.02
     temporal: float = 2.0
+    field: float = 0.0
+    field_anchor: float = 1e-4
     seed: int = 0
 
 
@@ -222,6 +226,7 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
     out = positions.copy()
     priors = np.empty_like(positions)
     cache = {}  # the registration's normal equations: the same for every frame
+    bending = _bending(rest, n_fixed) if config.field > 0 else None
     for t in range(1, len(positions)):
         prior = priors[t] = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
         if not config.registration:  # ablation: the key points stay at their prior
@@ -236,6 +241,10 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
         if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
             keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
+        if config.field > 0:  # one smooth field in 3D through the normal parts of the key points' offsets
+            normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
+            out[t, n_fixed:] = prior[n_fixed:] + _smooth_offsets(out[t, n_fixed:] - prior[n_fixed:], normals,
+                                                                 bending, config.field, config.field_anchor)
         if progress is not None:
             progress(1)
     if config.registration and config.temporal > 0 and len(out) > 2:
@@ -245,6 +254,52 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                                                   mode="nearest")
         out[1:, n_fixed:] = priors[1:, n_fixed:] + offsets
     return out
+
+
+def _bending(rest: np.ndarray, n_fixed: int, *, k: int = 8) -> scipy.sparse.csr_matrix:
+    """(n_free, n_free) sparse ``Lf^T Lf``: the squared graph Laplacian of the key points in F^0 (``k`` nearest
+    neighbours, weights ``exp(-(d / 2 s)^2)``, s the median neighbour distance) on the free key points, the fixed
+    ones (landmarks) held at a zero offset. ``delta^T (Lf^T Lf) delta`` is a discrete bending energy of the free key
+    points' offset field."""
+    n = len(rest)
+    dist, nb = cKDTree(rest).query(rest, k=min(k + 1, n))
+    dist, nb = dist[:, 1:], nb[:, 1:]
+    s = max(float(np.median(dist)), 1e-12)
+    adj = scipy.sparse.coo_matrix((np.exp(-(dist.ravel() / (2.0 * s)) ** 2),
+                                   (np.repeat(np.arange(n), nb.shape[1]), nb.ravel())), (n, n)).tocsr()
+    adj = adj + adj.T
+    lap = (scipy.sparse.diags(np.asarray(adj.sum(1)).ravel()) - adj).tocsc()[:, n_fixed:]
+    return (lap.T @ lap).tocsr()
+
+
+def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float) -> np.ndarray:
+    """The free key points' offsets from their prior as one smooth field in 3D that keeps their parts along the scan's
+    normal: ``delta`` (n_free, 3) minimises
+
+        sum_k (n_k . delta_k - n_k . offset_k)^2 + anchor |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
+
+    (n_k the normal of the scan point nearest to key point k). The scan fixes each key point only along its normal;
+    where the normals of neighbouring key points differ, the smoothness turns their normal moves into moves along
+    the surface, and ``anchor`` holds what neither fixes at the prior. Solved by conjugate gradients with the 3x3
+    diagonal blocks as preconditioner (approximate: relative residual 1e-6), from the normal parts alone."""
+    n = len(offsets)
+    r = (offsets * normals).sum(1)
+    nn = normals[:, :, None] * normals[:, None, :] + anchor * np.eye(3)
+    diag = nn + weight * bending.diagonal()[:, None, None] * np.eye(3)
+    inv = np.linalg.inv(diag)
+
+    def matvec(v):
+        d = v.reshape(n, 3)
+        return (np.einsum("nij,nj->ni", nn, d) + weight * (bending @ d)).ravel()
+
+    def precond(v):
+        return np.einsum("nij,nj->ni", inv, v.reshape(n, 3)).ravel()
+
+    a = scipy.sparse.linalg.LinearOperator((3 * n, 3 * n), matvec=matvec, dtype=np.float64)
+    m = scipy.sparse.linalg.LinearOperator((3 * n, 3 * n), matvec=precond, dtype=np.float64)
+    b = (normals * r[:, None]).ravel()
+    delta, _ = scipy.sparse.linalg.cg(a, b, x0=b.copy(), rtol=1e-6, maxiter=200, M=m)
+    return delta.reshape(n, 3)
 
 
 def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,

@@ -10,7 +10,9 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
    scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
-   then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
+   then the normal parts of the key points' offsets from their prior are taken as one smooth field in 3D
+   (``field``: :func:`_smooth_offsets`; where neighbouring normals differ, their normal moves give the moves along
+   the surface that a single key point's scan cannot); then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
    surface anew in every frame, so their sampling noise is independent between frames, the motion is not);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
@@ -70,7 +72,10 @@ class SamplerConfig:
     (seen on the ears); 0 turns it off; temporal : the key points' offsets from their prior (what step 4 adds) are
     smoothed over the frames by a Gaussian of this standard deviation in frames (0: off; needs more than two
     frames): each scan is a new sample of the surface with new noise, the skin's motion is smooth in time;
-    seed : of the sampling.
+    field, field_anchor : after the projection and the gate, the free key points' offsets from their prior are
+    replaced by one smooth field in 3D that keeps their parts along the scan's normal (:func:`_smooth_offsets`:
+    ``field`` weighs its bending energy, 0 turns it off; ``field_anchor`` holds what neither the normals nor the
+    smoothness fix at the prior); seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -90,7 +95,7 @@ class SamplerConfig:
     gate: float = 0.02
     temporal: float = 2.0
     field: float = 0.0
-    field_anchor: float = 1e-4
+    field_anchor: float = 0.03
     seed: int = 0
 
 

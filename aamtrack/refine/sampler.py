@@ -75,7 +75,8 @@ class SamplerConfig:
     field, field_anchor : after the projection and the gate, the free key points' offsets from their prior are
     replaced by one smooth field in 3D that keeps their parts along the scan's normal (:func:`_smooth_offsets`:
     ``field`` weighs its bending energy, 0 turns it off; ``field_anchor`` holds what neither the normals nor the
-    smoothness fix at the prior); seed : of the sampling.
+    smoothness fix at the prior; ``field_anchor_gated`` does so for the key points the gate kept at their prior,
+    which the field would otherwise drag along with their neighbours); seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -94,8 +95,9 @@ class SamplerConfig:
     project: bool = True
     gate: float = 0.02
     temporal: float = 2.0
-    field: float = 0.0
+    field: float = 0.01
     field_anchor: float = 0.03
+    field_anchor_gated: float = 1.0
     seed: int = 0
 
 
@@ -248,8 +250,10 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if config.field > 0:  # one smooth field in 3D through the normal parts of the key points' offsets
             normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
+            held = keep if config.gate else None  # the gated ones are held at their prior more firmly
             out[t, n_fixed:] = prior[n_fixed:] + _smooth_offsets(out[t, n_fixed:] - prior[n_fixed:], normals,
-                                                                 bending, config.field, config.field_anchor)
+                                                                 bending, config.field, config.field_anchor, held,
+                                                                 config.field_anchor_gated)
         if progress is not None:
             progress(1)
     if config.registration and config.temporal > 0 and len(out) > 2:
@@ -277,21 +281,27 @@ def _bending(rest: np.ndarray, n_fixed: int, *, k: int = 8) -> scipy.sparse.csr_
     return (lap.T @ lap).tocsr()
 
 
-def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float) -> np.ndarray:
-    """The free key points' offsets from their prior as one smooth field in 3D that keeps their parts along the scan's
-    normal: ``delta`` (n_free, 3) minimises
+def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float,
+                    held: np.ndarray | None = None, held_anchor: float = 1.0) -> np.ndarray:
+    """The free key points' offsets from their prior (n_free, 3) as one smooth field in 3D that keeps their parts
+    along the scan's normal: ``delta`` minimises
 
-        sum_k (n_k . delta_k - n_k . offset_k)^2 + anchor |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
+        sum_k (n_k . delta_k - n_k . offset_k)^2 + a_k |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
 
-    (n_k the normal of the scan point nearest to key point k). The scan fixes each key point only along its normal;
-    where the normals of neighbouring key points differ, the smoothness turns their normal moves into moves along
-    the surface, and ``anchor`` holds what neither fixes at the prior. Solved by conjugate gradients with the 3x3
-    diagonal blocks as preconditioner (approximate: relative residual 1e-6), from the normal parts alone."""
-    n = len(offsets)
+    (n_k the normal of the scan point nearest to key point k; bending: :func:`_bending`; a_k = ``anchor``, or
+    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan), and then each
+    key point's part along its normal is set back to the measured one, so that only the moves along the surface
+    come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
+    points differ, the smoothness turns their normal moves into moves along the surface, and the anchor holds what
+    neither fixes at the prior. Conjugate gradients with the 3x3 diagonal blocks as preconditioner, from the normal
+    parts (approximate: relative residual 1e-6)."""
     r = (offsets * normals).sum(1)
-    nn = normals[:, :, None] * normals[:, None, :] + anchor * np.eye(3)
-    diag = nn + weight * bending.diagonal()[:, None, None] * np.eye(3)
-    inv = np.linalg.inv(diag)
+    n = len(r)
+    a = np.full(n, float(anchor))
+    if held is not None:
+        a[np.asarray(held, bool)] = held_anchor
+    nn = normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
+    inv = np.linalg.inv(nn + weight * bending.diagonal()[:, None, None] * np.eye(3))
 
     def matvec(v):
         d = v.reshape(n, 3)
@@ -300,11 +310,13 @@ def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: f
     def precond(v):
         return np.einsum("nij,nj->ni", inv, v.reshape(n, 3)).ravel()
 
-    a = scipy.sparse.linalg.LinearOperator((3 * n, 3 * n), matvec=matvec, dtype=np.float64)
-    m = scipy.sparse.linalg.LinearOperator((3 * n, 3 * n), matvec=precond, dtype=np.float64)
+    shape = (3 * n, 3 * n)
     b = (normals * r[:, None]).ravel()
-    delta, _ = scipy.sparse.linalg.cg(a, b, x0=b.copy(), rtol=1e-6, maxiter=200, M=m)
-    return delta.reshape(n, 3)
+    sol, _ = scipy.sparse.linalg.cg(scipy.sparse.linalg.LinearOperator(shape, matvec=matvec, dtype=np.float64), b,
+                                    x0=b.copy(), rtol=1e-6, maxiter=200,
+                                    M=scipy.sparse.linalg.LinearOperator(shape, matvec=precond, dtype=np.float64))
+    sol = sol.reshape(n, 3)
+    return sol - normals * ((sol * normals).sum(1) - r)[:, None]  # the measured normal parts
 
 
 def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,

@@ -34,15 +34,22 @@ def test_field_recovers_motion_along_a_curved_surface():
     err_normal_only = np.linalg.norm(normal_only - truth[n_fixed:], axis=1).mean()
     # (seen 0.76x) the motion along the surface comes from the neighbours' normal moves
     assert err < 0.85 * err_normal_only, (err, err_normal_only)
-    kept = np.abs(((delta - truth[n_fixed:]) * normals).sum(1)).mean()
-    assert kept < 0.1 * np.abs((truth[n_fixed:] * normals).sum(1)).mean()  # the normal parts are kept (to 10%)
+    assert np.allclose((delta * normals).sum(1), (offsets * normals).sum(1), atol=1e-12)  # the measured normal parts
 
 
-def test_anchor_alone_keeps_the_normal_parts_only():
+def test_without_smoothness_only_the_normal_parts_stay_and_held_points_move_less():
     rng = np.random.default_rng(SEED + 1)
     points, truth = _cap(rng)
     normals = points[40:]
     offsets = truth[40:] + 0.01 * rng.standard_normal(truth[40:].shape)
-    delta = _smooth_offsets(offsets, normals, _bending(points, 40), 0.0, 1e-2)  # no smoothness
-    expected = normals * ((offsets * normals).sum(1) / 1.01)[:, None]  # the closed form of the 3x3 blocks
-    assert np.abs(delta - expected).max() < 1e-6 * np.abs(expected).max()  # CG to its 1e-6 tolerance
+    bending = _bending(points, 40)
+    delta = _smooth_offsets(offsets, normals, bending, 0.0, 1e-2)  # no smoothness
+    expected = normals * (offsets * normals).sum(1)[:, None]  # the step along the normal alone
+    assert np.abs(delta - expected).max() < 1e-6 * np.abs(expected).max()  # CG to its 1e-6
+    held = rng.random(len(normals)) < 0.3
+    free = _smooth_offsets(offsets, normals, bending, 0.1, 1e-2)
+    firm = _smooth_offsets(offsets, normals, bending, 0.1, 1e-2, held, 1.0)
+    along_free, along_firm = (np.linalg.norm(d - expected, axis=1) for d in (free, firm))
+    assert along_free[held].mean() > 1e-4  # (seen 3e-3) the smoothness moves key points along the surface
+    assert along_firm[held].mean() < 0.3 * along_free[held].mean()  # (seen 0.15x) less where held
+    assert np.allclose((firm * normals).sum(1), (offsets * normals).sum(1), atol=1e-12)  # normal parts kept

@@ -294,8 +294,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"identity {i} -> other identity: transfer error {trans['error_mm']:.3f} mm "
                   f"(not moving the target: {trans['error_if_not_moved_mm']:.3f} mm), {trans['seconds']:.1f} s",
                   flush=True)
-    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30),
-                                      config=sampler_config(100, args.pull, args.tangential, args.smooth_frames, args.field))
+    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30), config=sampler_config(
+        100, args.pull, args.tangential, args.smooth_frames, args.field))
     print(f"scans of 10,000 points: {report['timing_10k']['median_seconds_per_frame']:.2f} s/frame wall, "
           f"{report['timing_10k']['median_cpu_seconds_per_frame']:.2f} s/frame CPU (median of "
           f"{report['timing_10k']['repeats']})", flush=True)

@@ -256,8 +256,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="with --pull plane/mixed: weight of the motion along the surface (default 0.1)")
     parser.add_argument("--smooth-frames", type=float, help="the sampler's smoothing over time, in frames "
                         "(default: the sampler's, 2; 0 off)")
-    parser.add_argument("--field", type=float, help="the sampler's smooth offset field (its weight; default: the "
-                        "sampler's, 0 = off; measured: 0.01)")
+    parser.add_argument("--field", type=float, help="the sampler's smooth offset field, its weight (default: the "
+                        "sampler's, 0.01; 0 off)")
     parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
     if not ICT.exists():

@@ -1,7 +1,8 @@
 """Benchmark of key point refinement (tracking of scan sequences) and facial transfer on ICT FaceKit faces.
 
     python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--no-transfer]
-                                [--pull normal|mixed|plane] [--tangential W] [--smooth-frames S] [--json OUT]
+                                [--pull normal|mixed|plane] [--tangential W] [--smooth-frames S] [--field W]
+                                [--json OUT]
 
 Tracking, per identity (errors in millimetres, mean |D^t(F^0) - F^t| over frames 1..T against the exact ICT
 correspondence): the ``blind`` scenario (default) is motion the 68 landmarks see badly -- cheek puffs, nose sneers,
@@ -109,15 +110,18 @@ def _sequence(model, scenario: str, seed: int, n_frames: int):
 
 
 def sampler_config(seed: int, pull: str = "normal", tangential: float = 0.1,
-                   smooth_frames: float | None = None) -> SamplerConfig:
+                   smooth_frames: float | None = None, field: float | None = None) -> SamplerConfig:
     """The sampler's defaults, or with the registration's pull changed to ``pull``: "mixed" (the normal pull plus
     ``tangential`` of the step along the surface) at every scale; "plane" (point-to-plane with the key points free
     in 3D plus ``tangential`` point-to-point) at the smooth-field scales (``nodes`` > 0), the last scale (key point
     by key point) keeping the normal pull (coupled 3D normal equations there would have 3 k unknowns per frame).
-    smooth_frames : the sampler's ``temporal`` (None: its default)."""
+    smooth_frames : the sampler's ``temporal``; field : its ``field`` (the smooth offset field's weight; None: the
+    sampler's default)."""
     config = SamplerConfig(seed=seed)
     if smooth_frames is not None:
         config = dataclasses.replace(config, temporal=smooth_frames)
+    if field is not None:
+        config = dataclasses.replace(config, field=field)
     if pull == "normal":
         return config
     pulls = tuple(pull if n or pull == "mixed" else "normal" for n in config.nodes)
@@ -252,6 +256,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="with --pull plane/mixed: weight of the motion along the surface (default 0.1)")
     parser.add_argument("--smooth-frames", type=float, help="the sampler's smoothing over time, in frames "
                         "(default: the sampler's, 2; 0 off)")
+    parser.add_argument("--field", type=float, help="the sampler's smooth offset field, its weight (default: the "
+                        "sampler's, 0.01; 0 off)")
     parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
     if not ICT.exists():
@@ -259,14 +265,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     model = load_face_model(ICT)
     report = {"machine": machine(), "command": " ".join(["python benchmarks/refine.py", *(argv or sys.argv[1:])]),
-              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames))}
+              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames, args.field))}
     start = time.perf_counter()
     gmm.warmup()
     report["compile_seconds"] = time.perf_counter() - start
     report["tracking"], report["transfer"] = [], []
     for i in range(args.identities):
         track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario,
-                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames))
+                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames, args.field))
         report["tracking"].append(track)
         a, r, w = track["landmarks_68"], track["refined"], track["without_gmm"]
         print(f"identity {i} ({args.scenario}, {track['scan_points']} points/scan): face / far from landmarks (mm): "
@@ -288,8 +294,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"identity {i} -> other identity: transfer error {trans['error_mm']:.3f} mm "
                   f"(not moving the target: {trans['error_if_not_moved_mm']:.3f} mm), {trans['seconds']:.1f} s",
                   flush=True)
-    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30),
-                                      config=sampler_config(100, args.pull, args.tangential, args.smooth_frames))
+    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30), config=sampler_config(
+        100, args.pull, args.tangential, args.smooth_frames, args.field))
     print(f"scans of 10,000 points: {report['timing_10k']['median_seconds_per_frame']:.2f} s/frame wall, "
           f"{report['timing_10k']['median_cpu_seconds_per_frame']:.2f} s/frame CPU (median of "
           f"{report['timing_10k']['repeats']})", flush=True)

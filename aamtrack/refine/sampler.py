@@ -10,7 +10,9 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
    scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
-   then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
+   then the normal parts of the key points' offsets from their prior are taken as one smooth field in 3D
+   (``field``: :func:`_smooth_offsets`; where neighbouring normals differ, their normal moves give the moves along
+   the surface that a single key point's scan cannot); then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
    surface anew in every frame, so their sampling noise is independent between frames, the motion is not);
 5. repeats while the error falls by more than ``min_improvement`` (1%).
 
@@ -38,6 +40,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 import scipy.ndimage
+import scipy.sparse
+import scipy.sparse.linalg
 from scipy.spatial import cKDTree
 
 from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
@@ -68,7 +72,11 @@ class SamplerConfig:
     (seen on the ears); 0 turns it off; temporal : the key points' offsets from their prior (what step 4 adds) are
     smoothed over the frames by a Gaussian of this standard deviation in frames (0: off; needs more than two
     frames): each scan is a new sample of the surface with new noise, the skin's motion is smooth in time;
-    seed : of the sampling.
+    field, field_anchor : after the projection and the gate, the free key points' offsets from their prior are
+    replaced by one smooth field in 3D that keeps their parts along the scan's normal (:func:`_smooth_offsets`:
+    ``field`` weighs its bending energy, 0 turns it off; ``field_anchor`` holds what neither the normals nor the
+    smoothness fix at the prior; ``field_anchor_gated`` does so for the key points the gate kept at their prior,
+    which the field would otherwise drag along with their neighbours); seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -87,6 +95,9 @@ class SamplerConfig:
     project: bool = True
     gate: float = 0.02
     temporal: float = 2.0
+    field: float = 0.01
+    field_anchor: float = 0.03
+    field_anchor_gated: float = 1.0
     seed: int = 0
 
 
@@ -222,6 +233,7 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
     out = positions.copy()
     priors = np.empty_like(positions)
     cache = {}  # the registration's normal equations: the same for every frame
+    bending = _bending(rest, n_fixed) if config.field > 0 else None
     for t in range(1, len(positions)):
         prior = priors[t] = prior_op @ np.concatenate([positions[t, :n_fixed], rigids[t](neutral[anchors])])
         if not config.registration:  # ablation: the key points stay at their prior
@@ -236,6 +248,12 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
         if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
             keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
+        if config.field > 0:  # one smooth field in 3D through the normal parts of the key points' offsets
+            normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
+            held = keep if config.gate else None  # the gated ones are held at their prior more firmly
+            out[t, n_fixed:] = prior[n_fixed:] + _smooth_offsets(out[t, n_fixed:] - prior[n_fixed:], normals,
+                                                                 bending, config.field, config.field_anchor, held,
+                                                                 config.field_anchor_gated)
         if progress is not None:
             progress(1)
     if config.registration and config.temporal > 0 and len(out) > 2:
@@ -245,6 +263,60 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                                                   mode="nearest")
         out[1:, n_fixed:] = priors[1:, n_fixed:] + offsets
     return out
+
+
+def _bending(rest: np.ndarray, n_fixed: int, *, k: int = 8) -> scipy.sparse.csr_matrix:
+    """(n_free, n_free) sparse ``Lf^T Lf``: the squared graph Laplacian of the key points in F^0 (``k`` nearest
+    neighbours, weights ``exp(-(d / 2 s)^2)``, s the median neighbour distance) on the free key points, the fixed
+    ones (landmarks) held at a zero offset. ``delta^T (Lf^T Lf) delta`` is a discrete bending energy of the free key
+    points' offset field."""
+    n = len(rest)
+    dist, nb = cKDTree(rest).query(rest, k=min(k + 1, n))
+    dist, nb = dist[:, 1:], nb[:, 1:]
+    s = max(float(np.median(dist)), 1e-12)
+    adj = scipy.sparse.coo_matrix((np.exp(-(dist.ravel() / (2.0 * s)) ** 2),
+                                   (np.repeat(np.arange(n), nb.shape[1]), nb.ravel())), (n, n)).tocsr()
+    adj = adj + adj.T
+    lap = (scipy.sparse.diags(np.asarray(adj.sum(1)).ravel()) - adj).tocsc()[:, n_fixed:]
+    return (lap.T @ lap).tocsr()
+
+
+def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float,
+                    held: np.ndarray | None = None, held_anchor: float = 1.0) -> np.ndarray:
+    """The free key points' offsets from their prior (n_free, 3) as one smooth field in 3D that keeps their parts
+    along the scan's normal: ``delta`` minimises
+
+        sum_k (n_k . delta_k - n_k . offset_k)^2 + a_k |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
+
+    (n_k the normal of the scan point nearest to key point k; bending: :func:`_bending`; a_k = ``anchor``, or
+    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan), and then each
+    key point's part along its normal is set back to the measured one, so that only the moves along the surface
+    come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
+    points differ, the smoothness turns their normal moves into moves along the surface, and the anchor holds what
+    neither fixes at the prior. Conjugate gradients with the 3x3 diagonal blocks as preconditioner, from the normal
+    parts (approximate: relative residual 1e-6)."""
+    r = (offsets * normals).sum(1)
+    n = len(r)
+    a = np.full(n, float(anchor))
+    if held is not None:
+        a[np.asarray(held, bool)] = held_anchor
+    nn = normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
+    inv = np.linalg.inv(nn + weight * bending.diagonal()[:, None, None] * np.eye(3))
+
+    def matvec(v):
+        d = v.reshape(n, 3)
+        return (np.einsum("nij,nj->ni", nn, d) + weight * (bending @ d)).ravel()
+
+    def precond(v):
+        return np.einsum("nij,nj->ni", inv, v.reshape(n, 3)).ravel()
+
+    shape = (3 * n, 3 * n)
+    b = (normals * r[:, None]).ravel()
+    sol, _ = scipy.sparse.linalg.cg(scipy.sparse.linalg.LinearOperator(shape, matvec=matvec, dtype=np.float64), b,
+                                    x0=b.copy(), rtol=1e-6, maxiter=200,
+                                    M=scipy.sparse.linalg.LinearOperator(shape, matvec=precond, dtype=np.float64))
+    sol = sol.reshape(n, 3)
+    return sol - normals * ((sol * normals).sum(1) - r)[:, None]  # the measured normal parts
 
 
 def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,

@@ -127,7 +127,7 @@ class Searcher:
         if lc is None:
             return res
         if r is None:
-            r = level_factor(res.p[3] * self.width, self.model.couples[-1].face_px)
+            r = self.factors(res.p)[-1]
         first = max(0, lc.n_stages - last) if last > 0 else 0
         return replace(res, landmarks=lc.apply(levels.resampled(r), r, res.landmarks, first))
 

@@ -128,42 +128,43 @@ def ridge_fit(X: np.ndarray, Y: np.ndarray, *, alphas=(0.03, 0.3, 3.0, 30.0, 300
         R = cho_solve(cho_factor(Ac + lam * np.eye(len(Ac)), check_finite=False), Bc, check_finite=False)
         return R.T, ym - xm @ R
 
-    if len(X) < X.shape[1]:
-        return _ridge_dual(Xf, Y, held, alphas)
-    m_tr, m_he = moments(~held), moments(held)
+    if len(X) < X.shape[1]:  # fewer rows than columns: the dual is the smaller system
+        def fit_train(alpha):
+            return _ridge_dual(Xf, Y, ~held, alpha)
+
+        def fit_all(alpha):
+            return _ridge_dual(Xf, Y, np.ones(len(X), bool), alpha)
+    else:
+        m_tr, m_he = moments(~held), moments(held)
+
+        def fit_train(alpha):
+            return solve(m_tr, alpha)
+
+        def fit_all(alpha):
+            return solve(tuple(a + b for a, b in zip(m_tr, m_he, strict=True)), alpha)
     sd = Y.std(0) + 1e-12  # error per output scaled by its spread, so every parameter counts
     errs = []
     for alpha in alphas:
-        R, b = solve(m_tr, alpha)
+        R, b = fit_train(alpha)
         errs.append(float((((Xf[held] @ R.T + b - Y[held]) / sd) ** 2).mean()))
     best = alphas[int(np.argmin(errs))]
-    m_all = tuple(a + b for a, b in zip(m_tr, m_he))
-    R, b = solve(m_all, best)
+    R, b = fit_all(best)
     return R.astype(np.float32), b, best
 
 
-def _ridge_dual(X: np.ndarray, Y: np.ndarray, held: np.ndarray, alphas) -> tuple[np.ndarray, np.ndarray, float]:
-    """``ridge_fit`` for M < D, in the dual: R = Xc^T (Xc Xc^T + lambda I)^-1 Yc, lambda as in the primal."""
+def _ridge_dual(X: np.ndarray, Y: np.ndarray, mask: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """(R, b) of ``ridge_fit``'s regression on the rows ``mask``, in the dual (for M < D): R = Xc^T (Xc Xc^T +
+    lambda I)^-1 Yc, lambda = alpha * trace(Xc Xc^T) / D as in the primal."""
     from scipy.linalg import cho_factor, cho_solve
 
-    def solve(mask, alpha):
-        Xm = X[mask].astype(np.float64)
-        xm, ym = Xm.mean(0), Y[mask].mean(0)
-        Xc = Xm - xm
-        K = Xc @ Xc.T
-        lam = alpha * np.trace(K) / X.shape[1]
-        A = cho_solve(cho_factor(K + lam * np.eye(len(K)), check_finite=False), Y[mask] - ym, check_finite=False)
-        R = (Xc.T @ A).T
-        return R, ym - xm @ R.T
-
-    sd = Y.std(0) + 1e-12
-    errs = []
-    for alpha in alphas:
-        R, b = solve(~held, alpha)
-        errs.append(float((((X[held] @ R.T + b - Y[held]) / sd) ** 2).mean()))
-    best = alphas[int(np.argmin(errs))]
-    R, b = solve(np.ones(len(X), bool), best)
-    return R.astype(np.float32), b, best
+    Xm = X[mask].astype(np.float64)
+    xm, ym = Xm.mean(0), Y[mask].mean(0)
+    Xc = Xm - xm
+    K = Xc @ Xc.T
+    lam = alpha * np.trace(K) / X.shape[1]
+    A = cho_solve(cho_factor(K + lam * np.eye(len(K)), check_finite=False), Y[mask] - ym, check_finite=False)
+    R = (Xc.T @ A).T
+    return R, ym - xm @ R.T
 
 
 def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarray, shape3d: np.ndarray,

@@ -218,6 +218,13 @@ class _ByFactor:
         return self.images[r]
 
 
+def _image_levels(feats, factors, i: int) -> tuple[_ByFactor, list]:
+    """Training image i's feature images, one per couple (``feats[k][i]`` at ``factors[k][i]``), as levels to
+    search on, and the couples' factors for it."""
+    f = [fk[i] for fk in factors]
+    return _ByFactor({r: feats[k][i] for k, r in enumerate(f)}), f
+
+
 def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_orig: int, n_sharp: int):
     """The search's own fits from each training image's Haar box (mirrored images: the mirrored box), as the
     tracker fits a still: (fits (k, 68, 2), index of the image each belongs to). Images without a box have none."""
@@ -231,8 +238,8 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
         if i >= n_orig:
             x = widths[i] - x - w
         p0 = np.r_[initial_pose(sm, guess_points((x, y, w, h), box_points)), np.zeros(sm.n_shape)]
-        f = [fk[i] for fk in factors]
-        res = searcher.fit(_ByFactor({r: feats[k][i] for k, r in enumerate(f)}), p0, factors=f)
+        levels, f = _image_levels(feats, factors, i)
+        res = searcher.fit(levels, p0, factors=f)
         out.append(res.landmarks)
         idx.append(i)
     return np.array(out).reshape(-1, 68, 2), np.array(idx, np.int64)
@@ -475,8 +482,10 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                   detector_box_points=box_points, validator=dummy)
     if Pfinal is None:  # Jacobian models: the validator learns from the search run on the same starts
         searcher = Searcher(model)
-        Pfinal = np.array([searcher.fit(_ByFactor({f[i]: feats[k][i] for k, f in enumerate(factors)}), starts[m],
-                                        factors=[f[i] for f in factors]).p for m, i in enumerate(owner)])
+        Pfinal = np.empty((len(owner), len(starts[0])))
+        for m, i in enumerate(owner):
+            levels, f = _image_levels(feats, factors, i)
+            Pfinal[m] = searcher.fit(levels, starts[m], factors=f).p
     validator = _validator(model, feats[-1], factors[-1], P, Pfinal, owner, pts, rng, config)
     final_lmk = _landmarks(sm, basis, Pfinal)
     final_err = nme(final_lmk, pts[owner])

@@ -108,6 +108,14 @@ class LandmarkCascade:
                          feat=np.empty((len(x), sp.size), np.float32))
         return x
 
+    def validator_features(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
+        """(68 d,) float32: the last stage's projected descriptors read at pts (68, 2) (frame pixels) on
+        ``image`` (the grey frame resampled by ``scale``), what the landmark validator weighs
+        (``model.Validator``): what the face looks like around each final point."""
+        M, _ = similarity_to(self.ref, pts)
+        phi = descriptors(self.spec, image, scale, np.ascontiguousarray(pts, dtype=np.float64), self.halves[-1], M)
+        return project_descriptors(phi, self.basis_mean[-1], self.basis[-1])
+
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
         """``apply`` stage by stage in numpy (what training does; the reference ``apply`` is tested against)."""
         x = np.array(pts, dtype=np.float64)

@@ -4,7 +4,8 @@ detector's box geometry and the fit validator; saved as one versioned ``.npz``.
 
 File layout (``np.savez_compressed``, read with ``allow_pickle=False``): ``meta`` is a JSON string with
 ``format_version``, the package version, the model kind, names, the feature settings and the training record;
-arrays are ``shape/*``, ``tex{i}/*``, ``couple{j}/*``, ``detector/box_points`` and ``validator/*``. ``load_model``
+arrays are ``shape/*``, ``tex{i}/*``, ``couple{j}/*``, ``detector/box_points``, ``validator/*`` and, with a
+landmark cascade, ``landmarks/*`` and ``landmark_validator/*``. ``load_model``
 checks every array's shape, dtype, finiteness and index range, so a damaged or crafted file is one clear error,
 never a crash in compiled code.
 """
@@ -29,7 +30,7 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 3  # 3: the landmark cascade (``landmark_cascade``)
+FORMAT_VERSION = 4  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
 
 
@@ -71,18 +72,25 @@ class Couple:
 
 @dataclass(frozen=True)
 class Validator:
-    """Logistic fit validator: confidence = 1 / (1 + exp(-(w . (x - mean) / scale + bias))) over the fit
-    statistics x named ``names`` (``aamtrack.search.STAT_NAMES``)."""
+    """Logistic fit validator: confidence = 1 / (1 + exp(-(w . (x - mean) / scale + d . z + bias))) over the fit
+    statistics x named ``names`` (``aamtrack.search.STAT_NAMES``) and, for the landmark validator, the landmark
+    cascade's descriptors z at the final points (``LandmarkCascade.validator_features``) weighted by
+    ``descriptor_weights`` d (float32, None for a statistics-only validator)."""
 
     names: tuple
     weights: np.ndarray
     mean: np.ndarray
     scale: np.ndarray
     bias: float
+    descriptor_weights: np.ndarray | None = None
 
-    def __call__(self, x: np.ndarray) -> float:
-        z = float(np.dot(self.weights, (np.asarray(x, float) - self.mean) / self.scale) + self.bias)
-        return float(1.0 / (1.0 + np.exp(-np.clip(z, -50.0, 50.0))))
+    def __call__(self, x: np.ndarray, z: np.ndarray | None = None) -> float:
+        s = float(np.dot(self.weights, (np.asarray(x, float) - self.mean) / self.scale) + self.bias)
+        if self.descriptor_weights is not None:
+            if z is None:
+                raise ValueError("this validator reads the landmark descriptors too")
+            s += float(np.dot(self.descriptor_weights, z))
+        return float(1.0 / (1.0 + np.exp(-np.clip(s, -50.0, 50.0))))
 
 
 @dataclass(frozen=True)
@@ -102,6 +110,7 @@ class Model:
     validator: Validator
     config: dict = field(default_factory=dict)
     landmark_cascade: LandmarkCascade | None = None
+    landmark_validator: Validator | None = None  # the reported confidence, after the landmark cascade
 
     @property
     def kind(self) -> str:
@@ -141,6 +150,11 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays["landmarks/ref"], arrays["landmarks/regressors"], arrays["landmarks/biases"] = \
             lc.ref, lc.regressors.astype(np.float16), lc.biases
         arrays["landmarks/basis_mean"], arrays["landmarks/basis"] = lc.basis_mean, lc.basis
+    lv = model.landmark_validator
+    if lv is not None:
+        arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
+        arrays["landmark_validator/scale"] = lv.scale
+        arrays["landmark_validator/descriptor_weights"] = lv.descriptor_weights
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
@@ -155,6 +169,7 @@ def save_model(model: Model, path: str | Path) -> None:
         "landmark_cascade": None if lc is None else {"halves": list(lc.halves), "cells": lc.spec.cells,
                                                      "cell": lc.spec.cell, "bins": lc.spec.bins,
                                                      "floor": lc.spec.floor},
+        "landmark_validator": None if lv is None else {"names": list(lv.names), "bias": lv.bias},
         "config": model.config,
     }
     arrays["meta"] = np.array(json.dumps(meta))
@@ -337,19 +352,35 @@ def _read(c: _Checker, meta: dict) -> Model:
     couples = tuple(_couple(c, j, spec, textures, n_params) for j, spec in enumerate(meta["couples"]))
     if not couples:
         c.fail("no couples")
-    vm = meta["validator"]
-    names = tuple(map(str, vm["names"]))
-    k = len(names)
-    validator = Validator(names, c.array("validator/weights", np.float64, (k,)),
-                          c.array("validator/mean", np.float64, (k,)), c.array("validator/scale", np.float64, (k,)),
-                          float(vm["bias"]))
-    if (validator.scale <= 0).any() or not np.isfinite(validator.bias):
-        c.fail("validator scale or bias out of range")
+    validator = _validator(c, "validator", meta["validator"])
     box = c.array("detector/box_points", np.float64, (N_LANDMARKS, 2))
     config = meta.get("config", {})
+    lc = _landmark_cascade(c, meta.get("landmark_cascade"))
+    lv = meta.get("landmark_validator")
+    if lv is not None and lc is None:
+        c.fail("a landmark validator without a landmark cascade")
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
-                 validator=validator, config=config if isinstance(config, dict) else {},
-                 landmark_cascade=_landmark_cascade(c, meta.get("landmark_cascade")))
+                 validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
+                 landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv,
+                                                                       N_LANDMARKS * lc.basis.shape[2]))
+
+
+def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
+    """The validator stored under ``key`` (``n_descriptor`` > 0: with that many descriptor weights)."""
+    if not isinstance(spec, dict) or not isinstance(spec.get("names"), list):
+        c.fail(f"unreadable {key} settings")
+    names = tuple(map(str, spec["names"]))
+    k = len(names)
+    try:
+        bias = float(spec["bias"])
+    except (KeyError, TypeError, ValueError):
+        c.fail(f"unreadable {key} settings")
+    v = Validator(names, c.array(f"{key}/weights", np.float64, (k,)), c.array(f"{key}/mean", np.float64, (k,)),
+                  c.array(f"{key}/scale", np.float64, (k,)), bias,
+                  c.array(f"{key}/descriptor_weights", np.float32, (n_descriptor,)) if n_descriptor else None)
+    if (v.scale <= 0).any() or not np.isfinite(v.bias):
+        c.fail(f"{key} scale or bias out of range")
+    return v
 
 
 def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:

@@ -21,6 +21,10 @@ def test_round_trip(tmp_path, synth_model):
     assert m.features == synth_model.features and m.validator.names == synth_model.validator.names
     assert np.array_equal(m.validator.weights, synth_model.validator.weights)
     assert np.array_equal(m.detector_box_points, synth_model.detector_box_points)
+    lv, lv0 = m.landmark_validator, synth_model.landmark_validator
+    assert lv0 is not None and lv0.descriptor_weights is not None  # the synthetic model has one: it is tested
+    assert lv.bias == lv0.bias and np.array_equal(lv.descriptor_weights, lv0.descriptor_weights)
+    assert np.array_equal(lv.weights, lv0.weights) and np.array_equal(lv.scale, lv0.scale)
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
 
 
@@ -104,10 +108,14 @@ def _damaged(synth_model):
         ("texture of another couple", {}, {"couples": [{"face_px": 32.0, "texture": 7}]}, "names texture"),
         ("no couples", {}, {"couples": []}, "no couples"),
         ("missing array", {"couple0/cascade_bias": None}, {}, "missing"),
+        ("descriptor weights length", {"landmark_validator/descriptor_weights":
+                                       synth_model.landmark_validator.descriptor_weights[:-1]}, {}, "has shape"),
+        ("landmark validator without cascade", {}, {"landmark_cascade": None}, "without a landmark cascade"),
+        ("unreadable landmark validator", {}, {"landmark_validator": {"names": 3}}, "unreadable landmark_validator"),
     ]
 
 
-@pytest.mark.parametrize("case", range(15))
+@pytest.mark.parametrize("case", range(18))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

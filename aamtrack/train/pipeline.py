@@ -35,7 +35,7 @@ from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
-from .validator import logistic_fit, non_face_images
+from .validator import degraded, landmark_validator_fit, logistic_fit, non_face_images
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +92,12 @@ class TrainConfig:
     landmark_blur_share: the landmark cascade also learns from Gaussian-blurred copies of this share of the
     (mirrored) training images (sigma 0.02-0.06 of the outer eye-corner distance), with their sharp images' fits
     and labels. Off by measurement (3D, 0.3): cap12 blurred by 0.06 eye distances 0.0438 -> 0.0441, no better,
-    while cap12 itself went 0.0240 -> 0.0264 and helen_test 95.2% -> 94.5% (mean 0.0491 -> 0.0499)."""
+    while cap12 itself went 0.0240 -> 0.0264 and helen_test 95.2% -> 94.5% (mean 0.0491 -> 0.0499).
+    landmark_validator: with a landmark cascade, learn the landmark validator (``train.validator``), the
+    confidence reported after the cascade, from full fits of the training photos: from each one's Haar box, from
+    its shape fit moved a little (as a tracked frame starts), from
+    ``validator_negatives`` random boxes away from its face, and on non-face images; the same again on a copy of
+    a share ``validator_degraded`` of the photos, blurred, noisy, dark or flat (``train.validator.degraded``)."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"
@@ -124,6 +129,9 @@ class TrainConfig:
     landmark_starts: int = 16
     landmark_pca: int = 48
     landmark_blur_share: float = 0.0
+    landmark_validator: bool = True
+    validator_negatives: int = 2
+    validator_degraded: float = 0.5
     seed: int = 0
 
     def __post_init__(self):
@@ -399,6 +407,62 @@ def _validator(model: Model, feats_fine, factors_fine, P, Pfinal, owner, points,
     return logistic_fit(X, y, STAT_NAMES)
 
 
+def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: int, rng: np.random.Generator,
+                        config: TrainConfig) -> Validator:
+    """Learn the landmark validator (``train.validator.landmark_validator_fit``) from full fits (search and
+    landmark cascade, as a still is fitted) of the training photos (not their mirrors); see ``TrainConfig``."""
+    searcher = Searcher(model)
+    sm, lc = model.shape, model.landmark_cascade
+    S, Z, y = [], [], []
+
+    def add(levels, p0, truth):
+        r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
+        res = searcher.fit(levels, p0)
+        if truth is not None:
+            e = float(nme(res.landmarks, truth))
+            if 0.06 <= e <= 0.10:  # neither clearly on the face nor clearly off it
+                return
+        S.append(res.stats)
+        Z.append(lc.validator_features(levels.resampled(r), r, res.landmarks))
+        y.append(float(truth is not None and e < 0.06))
+
+    def start(box, roll=0.0):
+        p0 = np.r_[initial_pose(sm, guess_points(box, box_points)), np.zeros(sm.n_shape)]
+        p0[2] += roll
+        return p0
+
+    for i in range(n_orig):
+        truth = pts[i]
+        versions = [gray[i]]
+        if rng.random() < config.validator_degraded:
+            versions.append(degraded(gray[i], float(np.linalg.norm(truth[45] - truth[36])), rng))
+        for img in versions:
+            levels = Levels(img, model.features)
+            if np.isfinite(boxes[i, 0]):
+                add(levels, start(boxes[i]), truth)
+            p0 = P[i].copy()  # a tracked frame's start: the shape fit, moved a little
+            p0[2] += rng.normal(0.0, 0.05)
+            p0[3] *= np.exp(rng.normal(0.0, 0.04))
+            p0[4:6] += rng.normal(0.0, 0.04, 2) * p0[3] * searcher.width
+            add(levels, p0, truth)
+            face_w = float(np.ptp(truth[:, 0]))
+            centre = truth.mean(0)
+            H, W = img.shape
+            for _ in range(config.validator_negatives):  # random boxes away from the face
+                s = face_w * rng.uniform(0.4, 1.3)
+                for _ in range(20):
+                    x, y0 = rng.uniform(-0.25 * s, W - 0.75 * s), rng.uniform(-0.25 * s, H - 0.75 * s)
+                    if np.hypot(x + s / 2 - centre[0], y0 + s / 2 - centre[1]) > 0.6 * face_w:
+                        add(levels, start((x, y0, s, s), rng.uniform(-0.6, 0.6)), truth)
+                        break
+        if i % 8 == 0 and np.isfinite(boxes[i, 0]):  # non-face images where the face was
+            for blank in non_face_images(gray[i].shape, rng):
+                add(Levels(blank, model.features), start(boxes[i]), None)
+    y = np.array(y)
+    log.info("landmark validator: %d positives, %d negatives", int(y.sum()), int(len(y) - y.sum()))
+    return landmark_validator_fit(np.array(S), np.array(Z), y, STAT_NAMES)
+
+
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
                 config: TrainConfig = TrainConfig(), names: tuple = (),
                 progress: Progress = _no_progress) -> tuple[Model, TrainReport]:
@@ -518,10 +582,16 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             halves=tuple(config.landmark_halves), n_starts=config.landmark_starts, n_components=config.landmark_pca,
             rng=np.random.default_rng(config.seed + 3), progress=progress)
     del fine_gray
-    n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
+    landmark_validator = None
+    if landmark_cascade is not None and config.landmark_validator:
+        landmark_validator = _landmark_validator(
+            replace(model, validator=validator, landmark_cascade=landmark_cascade), gray, pts, P, boxes, box_points,
+            n_orig, np.random.default_rng(config.seed + 5), config)
+    n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
-               "landmark_s": t_lmk}
+               "landmark_s": t_lmk,
+               "landmark_validator_s": time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val - t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
            "landmark_stages": lmk_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
@@ -529,5 +599,6 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     log.info("training starts: median NME %.4f -> %.4f after the search", cfg["train_start_nme_median"],
              cfg["train_final_nme_median"])
     model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
-                  detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade)
+                  detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade,
+                  landmark_validator=landmark_validator)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

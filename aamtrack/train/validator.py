@@ -6,7 +6,16 @@ that says how likely the fit sits on a face, learned at training time from
   two thirds of the face width, rescaled or turned, and fits on non-face images (black, grey, uniform colour,
   noise, blurred noise, smooth ramps).
 
-Its output is the confidence reported per frame, and the tracker's loss test.
+Its output is the search's confidence: it picks among the fits of several starts.
+
+The landmark validator (``landmark_validator_fit``) gives the confidence reported per frame, and the tracker's
+loss test, once the landmark cascade has moved the points: the same statistics plus the cascade's descriptors at
+the final points, learned from full fits (search and cascade) of the training photos, some of them degraded
+(``degraded``): positives, the fits from their Haar boxes that end near the labels; negatives, those that end
+far off, fits from random boxes away from the face (hard negatives: what a false detection or a lost track
+converges to), and fits on non-face images. On helen_test with the shipped 3D model (prototype), the four
+statistics alone ranked the fits' errors at Spearman -0.57 and accepted a hand in a frame turned by 30 degrees
+at 0.90 (NME 1.14); with the descriptors, -0.68 and 0.01.
 """
 
 from __future__ import annotations
@@ -49,3 +58,52 @@ def non_face_images(shape: tuple, rng: np.random.Generator) -> list[np.ndarray]:
             rng.uniform(0, 255, shape).astype(np.float32),
             cv2.GaussianBlur(rng.uniform(0, 255, shape).astype(np.float32), (0, 0), rng.uniform(2, 8)),
             (128 + 100 * np.sin(ang) * (xx / W - 0.5) + 100 * np.cos(ang) * (yy / H - 0.5)).astype(np.float32)]
+
+
+DEGRADATIONS = ("blur", "noise", "dark", "low_contrast")
+
+
+def degraded(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
+    """A copy of a grey (H, W) float32 image under one of ``DEGRADATIONS``, drawn at random: Gaussian blur of
+    sigma 0.02-0.07 outer eye-corner distances (``eye_px``), Gaussian noise of sigma 5-30 grey levels, a gain of
+    0.15-0.5 (dark), or contrast x0.2-0.5 about mid grey. The landmark validator learns what a face looks like
+    through them too: learned on sharp photos only, it rejected 126 of 247 good fits of helen_test blurred by
+    0.06 eye distances (prototype, 3D model)."""
+    import cv2
+
+    kind = DEGRADATIONS[rng.integers(len(DEGRADATIONS))]
+    if kind == "blur":
+        return cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(0.02, 0.07) * eye_px))
+    if kind == "noise":
+        return np.clip(gray + rng.normal(0.0, rng.uniform(5.0, 30.0), gray.shape), 0, 255).astype(np.float32)
+    if kind == "dark":
+        return (gray * rng.uniform(0.15, 0.5)).astype(np.float32)
+    return (128.0 + (gray - 128.0) * rng.uniform(0.2, 0.5)).astype(np.float32)
+
+
+def landmark_validator_fit(S: np.ndarray, Z: np.ndarray, y: np.ndarray, names: tuple, *,
+                           l2: float = 0.04) -> Validator:
+    """The landmark validator (``model.Validator`` with descriptor weights): logistic regression on the fit
+    statistics S (n, k) and the descriptors at the final points Z (n, D), both standardised, classes weighted to
+    count equally, an L2 penalty ``l2`` (per sample) on every weight but the bias; minimised by L-BFGS (D is
+    thousands: Newton's Hessian would be D x D). The descriptors' standardisation is folded into their weights
+    and the bias, so the model file keeps one weight per descriptor value."""
+    from scipy.optimize import minimize
+
+    mean_s, scale_s = S.mean(0), S.std(0) + 1e-9
+    mean_z, scale_z = Z.mean(0), Z.std(0) + 1e-6
+    A = np.column_stack([(S - mean_s) / scale_s, (Z - mean_z) / scale_z, np.ones(len(S))])
+    cw = np.where(y > 0.5, 0.5 / max(y.mean(), 1e-9), 0.5 / max(1 - y.mean(), 1e-9)) / len(y)
+    reg = np.r_[np.full(A.shape[1] - 1, l2), 0.0]
+
+    def loss(w):
+        t = A @ w
+        # log(1 + exp(t)) - y t, stably; its gradient (sigmoid(t) - y)
+        f = float(cw @ (np.logaddexp(0.0, t) - y * t) + 0.5 * reg @ (w * w))
+        g = A.T @ (cw * (0.5 * (1.0 + np.tanh(0.5 * t)) - y)) + reg * w
+        return f, g
+
+    w = minimize(loss, np.zeros(A.shape[1]), jac=True, method="L-BFGS-B", options={"maxiter": 500}).x
+    k = S.shape[1]
+    wz = w[k:-1] / scale_z
+    return Validator(tuple(names), w[:k], mean_s, scale_s, float(w[-1] - wz @ mean_z), wz.astype(np.float32))

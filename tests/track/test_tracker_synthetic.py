@@ -31,8 +31,9 @@ def test_tracks_a_written_video_to_a_pixel(moving_video, synth_model):
 
 
 def test_tracked_frames_run_the_last_landmark_stages_only(moving_video, synth_model):
-    """``landmark_stages_tracked``: the search (pose, mesh, confidence) is the same whichever stages of the landmark
-    cascade run on tracked frames; the detection frame runs them all either way; the points stay within a pixel."""
+    """``landmark_stages_tracked``: the search (pose, mesh) is the same whichever stages of the landmark cascade run
+    on tracked frames; the detection frame runs them all either way; the points stay within a pixel. (The
+    confidence is the landmark validator's, read at the final points, so it may differ a little.)"""
     from aamtrack.track.tracker import TrackerConfig
 
     path, truth = moving_video
@@ -41,8 +42,9 @@ def test_tracked_frames_run_the_last_landmark_stages_only(moving_video, synth_mo
         with open_frames(path) as src:
             runs[last] = list(Tracker(synth_model, config=TrackerConfig(landmark_stages_tracked=last)).track(src))
     a, b = runs[0], runs[1]
-    assert all(np.array_equal(x.vertices, y.vertices) and x.confidence == y.confidence for x, y in zip(a, b))
-    assert np.array_equal(a[0].landmarks, b[0].landmarks)  # detection: every stage in both
+    assert all(np.array_equal(x.vertices, y.vertices) for x, y in zip(a, b))
+    assert np.array_equal(a[0].landmarks, b[0].landmarks) and a[0].confidence == b[0].confidence  # every stage
+    assert all(x.success and y.success for x, y in zip(a, b))
     assert any(not np.allclose(x.landmarks, y.landmarks) for x, y in zip(a[1:], b[1:]))  # tracked: not the same
     for run in (a, b):
         err = np.array([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(run, truth)])
@@ -275,3 +277,43 @@ def test_a_small_turned_box_does_not_replace_an_accepted_upright_fit(synth_model
     assert tracker.config.min_confidence <= 0.6 < tracker.config.turned_retry_below  # accepted, and doubted
     res, _ = tracker.detect_and_fit(image)
     assert res.confidence == (0.99 if turned_kept else 0.6)
+
+
+@pytest.mark.shared_data
+def test_shipped_model_rejects_fits_off_the_face():
+    """Hard negatives: on helen_test photos (never trained on), fits started from boxes on the background end
+    with low confidence while the fit from the Haar box is accepted; and a photo whose face Haar misses upright
+    (a child looking down behind toys) does not report the fit a turned frame finds on a hand (the validator
+    before the landmark validator accepted it at 0.90, NME 1.14)."""
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.metrics import nme
+    from aamtrack.model import load_model
+    from aamtrack.models import default_model_path
+    from conftest import shared_path
+
+    model = load_model(default_model_path("3d"))
+    tracker = Tracker(model)
+    pairs = find_pairs(shared_path("300w", "helen_test"))
+    accepted = rejected = n = 0
+    for img_path, pts_path in pairs[:40:4]:
+        photo, pts = load_pair(img_path, pts_path)
+        res, _ = tracker.detect_and_fit(photo)
+        if res is None or nme(res.landmarks, pts) > 0.08:
+            continue  # only photos the tracker fits well: the test is about the boxes, not the fits
+        accepted += res.confidence >= tracker.config.min_confidence
+        H, W = photo.shape[:2]
+        face_w = float(np.ptp(pts[:, 0]))
+        for corner in ((0, 0), (W - 0.5 * face_w, 0), (0, H - 0.5 * face_w), (W - 0.5 * face_w, H - 0.5 * face_w)):
+            box = np.array([*corner, 0.5 * face_w, 0.5 * face_w])
+            if np.hypot(*(box[:2] + box[2] / 2 - pts.mean(0))) < 0.6 * face_w:
+                continue  # the corner is on the face
+            off, _ = tracker.fit_detection(photo, (box, 0.0))
+            if nme(off.landmarks, pts) > 0.15:  # it stayed off the face
+                n += 1
+                rejected += off.confidence < tracker.config.min_confidence
+    print(f"face fits accepted {accepted}; background fits rejected {rejected} of {n}")
+    assert accepted >= 8 and n >= 20
+    assert rejected >= 0.9 * n
+    photo, pts = load_pair(*[p for p in pairs if p[0].stem == "3209573417_2"][0])
+    res, _ = tracker.detect_and_fit(photo)
+    assert res is None or res.confidence < tracker.config.min_confidence or nme(res.landmarks, pts) < 0.08

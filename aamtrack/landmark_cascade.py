@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import landmark_cascade, landmark_descriptors
+from .kernels import landmark_cascade, landmark_descriptors, landmark_features
 from .mesh.landmarks import similarity_fit
 
 
@@ -111,7 +111,16 @@ class LandmarkCascade:
     def validator_features(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
         """(68 d,) float32: the last stage's projected descriptors read at pts (68, 2) (frame pixels) on
         ``image`` (the grey frame resampled by ``scale``), what the landmark validator weighs
-        (``model.Validator``): what the face looks like around each final point."""
+        (``model.Validator``): what the face looks like around each final point. One compiled call
+        (``kernels.landmark_features``); ``validator_features_slow`` is the same in numpy steps."""
+        sp = self.spec
+        return landmark_features(image, scale, 0.5 * scale - 0.5, np.ascontiguousarray(pts, dtype=np.float64),
+                                 self.ref, self.halves[-1], self.basis_mean[-1], self.basis[-1], cells=sp.cells,
+                                 cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
+                                 feat=np.empty((len(pts), sp.size), np.float32)).reshape(-1)
+
+    def validator_features_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
+        """``validator_features`` in numpy steps (what it is tested against)."""
         M, _ = similarity_to(self.ref, pts)
         phi = descriptors(self.spec, image, scale, np.ascontiguousarray(pts, dtype=np.float64), self.halves[-1], M)
         return project_descriptors(phi, self.basis_mean[-1], self.basis[-1])

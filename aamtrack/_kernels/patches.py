@@ -163,6 +163,36 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
 
 
 @numba.njit(**NJIT)
+def _similarity(pts, ref, n2):
+    """(a, c) of the least-squares similarity [[a, c], [-c, a]] taking the centred reference ref (L, 2) (squared
+    norm n2) to pts (L, 2) about pts' centroid (``landmark_cascade.similarity_to`` in closed form)."""
+    L = pts.shape[0]
+    mx = 0.0
+    my = 0.0
+    for li in range(L):
+        mx += pts[li, 0]
+        my += pts[li, 1]
+    mx /= L
+    my /= L
+    a = 0.0
+    c = 0.0
+    for li in range(L):
+        dx = pts[li, 0] - mx
+        dy = pts[li, 1] - my
+        a += ref[li, 0] * dx + ref[li, 1] * dy
+        c += ref[li, 0] * dy - ref[li, 1] * dx
+    return a / n2, c / n2
+
+
+@numba.njit(**NJIT)
+def _squared_norm(ref):
+    n2 = 0.0
+    for li in range(ref.shape[0]):
+        n2 += ref[li, 0] * ref[li, 0] + ref[li, 1] * ref[li, 1]
+    return n2
+
+
+@numba.njit(**NJIT)
 def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, cells, cell, bins, floor, feat):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
@@ -171,26 +201,9 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
     (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + b[k]) @ M per point."""
     L = pts.shape[0]
     side = cells * cell
-    n2 = 0.0
-    for li in range(L):
-        n2 += ref[li, 0] * ref[li, 0] + ref[li, 1] * ref[li, 1]
+    n2 = _squared_norm(ref)
     for k in range(halves.shape[0]):
-        mx = 0.0
-        my = 0.0
-        for li in range(L):
-            mx += pts[li, 0]
-            my += pts[li, 1]
-        mx /= L
-        my /= L
-        a = 0.0
-        c = 0.0
-        for li in range(L):
-            dx = pts[li, 0] - mx
-            dy = pts[li, 1] - my
-            a += ref[li, 0] * dx + ref[li, 1] * dy
-            c += ref[li, 0] * dy - ref[li, 1] * dx
-        a /= n2
-        c /= n2
+        a, c = _similarity(pts, ref, n2)
         step = 2.0 * halves[k] / (side + 1)
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
@@ -201,3 +214,13 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
             uy = d[2 * li + 1] + b[k, 2 * li + 1]
             pts[li, 0] += ux * a - uy * c
             pts[li, 1] += ux * c + uy * a
+
+
+@numba.njit(**NJIT)
+def _landmark_features(img, scale, shift, pts, ref, half, basis_mean, basis, cells, cell, bins, floor, feat):
+    """(L, d) float32: the descriptors of pts (L, 2) (patch half side ``half`` reference units, in the frame of
+    the similarity taking ref to pts) projected on one stage's basis, as ``_landmark_cascade`` reads them."""
+    a, c = _similarity(pts, ref, _squared_norm(ref))
+    step = 2.0 * half / (cells * cell + 1)
+    _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor, feat)
+    return np.dot(feat - basis_mean, basis)

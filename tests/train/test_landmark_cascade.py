@@ -58,6 +58,9 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
     slow = np.array([cascade.apply_slow(g, 1.0, s) for g, s in zip(gray[test], starts)])
     fast = np.array([cascade.apply(g, 1.0, s) for g, s in zip(gray[test], starts)])
     assert np.abs(fast - slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
+    for g, s in zip(gray[test], starts):  # the landmark validator's features: compiled against numpy steps
+        z, z_slow = cascade.validator_features(g, 1.0, s), cascade.validator_features_slow(g, 1.0, s)
+        assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():

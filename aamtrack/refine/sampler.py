@@ -9,7 +9,8 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
    current key points do not see yet (a cheek puff between landmarks) draws candidates;
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
-   scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
+   scan's normal onto a robust local quadric of the scan where that is well fixed (:func:`_fit_heights`) --
+   except where the prior already lies on the scan (``gate``);
    then the normal parts of the key points' offsets from their prior are taken as one smooth field in 3D
    (``field``: :func:`_smooth_offsets`; where neighbouring normals differ, their normal moves give the moves along
    the surface that a single key point's scan cannot); then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
@@ -50,6 +51,7 @@ from .rbf import rbf_system
 log = logging.getLogger(__name__)
 
 
+
 @dataclass(frozen=True)
 class SamplerConfig:
     """Options of the key point sampler.
@@ -76,7 +78,13 @@ class SamplerConfig:
     replaced by one smooth field in 3D that keeps their parts along the scan's normal (:func:`_smooth_offsets`:
     ``field`` weighs its bending energy, 0 turns it off; ``field_anchor`` holds what neither the normals nor the
     smoothness fix at the prior; ``field_anchor_gated`` does so for the key points the gate kept at their prior,
-    which the field would otherwise drag along with their neighbours); seed : of the sampling.
+    which the field would otherwise drag along with their neighbours); fit_neighbours, fit_max_sigma : the
+    projection moves each free key point onto a robust local quadric of its ``fit_neighbours`` nearest scan points
+    (:func:`_fit_heights`), only where the fitted height's standard error is below ``fit_max_sigma`` scan spacings
+    (median distance between neighbouring scan points) and the key point is not at the scan's border; the others
+    keep their place and give the smooth field no normal part (it moves them with their neighbours); the gate
+    then uses the same fit at the prior; fit_neighbours = 0: tangent planes of the nearest scan points instead
+    (:func:`_project`, the former way); seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -98,6 +106,8 @@ class SamplerConfig:
     field: float = 0.01
     field_anchor: float = 0.03
     field_anchor_gated: float = 1.0
+    fit_neighbours: int = 16
+    fit_max_sigma: float = 0.037
     seed: int = 0
 
 
@@ -178,6 +188,8 @@ class _Surface:
         local = self.points[nb] - self.points[nb].mean(1, keepdims=True)
         _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
         self.normals = vecs[:, :, 0]
+        self.spacing = max(float(np.median(np.linalg.norm(self.points[nb[:, min(1, k - 1)]] - self.points, axis=1))),
+                           1e-12)  # median distance to the nearest other scan point
 
     def distance(self, query: np.ndarray, cap: float = np.inf) -> np.ndarray:
         """Point-to-plane distance to the nearest scan point, truncated at ``cap`` (also where no scan point is
@@ -243,17 +255,29 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
             continue
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
                           bases=bases, anchor_to=prior, cache=cache).controls
-        if config.project:
+        confidence = None
+        if config.project and config.fit_neighbours:  # onto a local quadric of the scan, where it is well fixed
+            moved, normals, sigma = _fit_heights(out[t, n_fixed:], surfaces[t], k=config.fit_neighbours)
+            trusted = sigma < config.fit_max_sigma * surfaces[t].spacing
+            out[t, n_fixed:][trusted] = moved[trusted]
+            confidence = trusted.astype(np.float64)  # the field takes the normal parts of these only
+        elif config.project:
             out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
         if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
-            keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            if confidence is None:
+                keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            else:  # the prior's height over the scan's quadric, where that is well fixed
+                on, _, sigma_p = _fit_heights(prior[n_fixed:], surfaces[t], k=config.fit_neighbours)
+                keep = (sigma_p < config.fit_max_sigma * surfaces[t].spacing) & (
+                    np.linalg.norm(on - prior[n_fixed:], axis=1) < config.gate * spacing)
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if config.field > 0:  # one smooth field in 3D through the normal parts of the key points' offsets
-            normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
+            if confidence is None:
+                normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
             held = keep if config.gate else None  # the gated ones are held at their prior more firmly
             out[t, n_fixed:] = prior[n_fixed:] + _smooth_offsets(out[t, n_fixed:] - prior[n_fixed:], normals,
                                                                  bending, config.field, config.field_anchor, held,
-                                                                 config.field_anchor_gated)
+                                                                 config.field_anchor_gated, confidence)
         if progress is not None:
             progress(1)
     if config.registration and config.temporal > 0 and len(out) > 2:
@@ -282,25 +306,28 @@ def _bending(rest: np.ndarray, n_fixed: int, *, k: int = 8) -> scipy.sparse.csr_
 
 
 def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float,
-                    held: np.ndarray | None = None, held_anchor: float = 1.0) -> np.ndarray:
+                    held: np.ndarray | None = None, held_anchor: float = 1.0,
+                    confidence: np.ndarray | None = None) -> np.ndarray:
     """The free key points' offsets from their prior (n_free, 3) as one smooth field in 3D that keeps their parts
     along the scan's normal: ``delta`` minimises
 
         sum_k (n_k . delta_k - n_k . offset_k)^2 + a_k |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
 
     (n_k the normal of the scan point nearest to key point k; bending: :func:`_bending`; a_k = ``anchor``, or
-    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan), and then each
-    key point's part along its normal is set back to the measured one, so that only the moves along the surface
-    come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
+    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan; with
+    ``confidence`` (n_free,) the first term of key point k is weighted by confidence_k, 0 where the scan does not
+    fix its normal part), and then each key point's part along its normal is set back to the measured one (where
+    confidence_k > 0.5), so that only the moves along the surface come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
     points differ, the smoothness turns their normal moves into moves along the surface, and the anchor holds what
     neither fixes at the prior. Conjugate gradients with the 3x3 diagonal blocks as preconditioner, from the normal
     parts (approximate: relative residual 1e-6)."""
     r = (offsets * normals).sum(1)
     n = len(r)
+    c = np.ones(n) if confidence is None else np.asarray(confidence, np.float64)
     a = np.full(n, float(anchor))
     if held is not None:
         a[np.asarray(held, bool)] = held_anchor
-    nn = normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
+    nn = c[:, None, None] * normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
     inv = np.linalg.inv(nn + weight * bending.diagonal()[:, None, None] * np.eye(3))
 
     def matvec(v):
@@ -311,12 +338,62 @@ def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: f
         return np.einsum("nij,nj->ni", inv, v.reshape(n, 3)).ravel()
 
     shape = (3 * n, 3 * n)
-    b = (normals * r[:, None]).ravel()
+    b = (normals * (c * r)[:, None]).ravel()
     sol, _ = scipy.sparse.linalg.cg(scipy.sparse.linalg.LinearOperator(shape, matvec=matvec, dtype=np.float64), b,
                                     x0=b.copy(), rtol=1e-6, maxiter=200,
                                     M=scipy.sparse.linalg.LinearOperator(shape, matvec=precond, dtype=np.float64))
     sol = sol.reshape(n, 3)
-    return sol - normals * ((sol * normals).sum(1) - r)[:, None]  # the measured normal parts
+    fix = c > 0.5  # the measured normal parts, where measured well
+    sol[fix] -= normals[fix] * ((sol[fix] * normals[fix]).sum(1) - r[fix])[:, None]
+    return sol
+
+
+def _fit_heights(points: np.ndarray, surface: "_Surface", *, k: int = 16, n_robust: int = 3,
+                 border: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Move points along the scan's normal onto a local quadric fit of the scan (moving least squares), and say how
+    well the scan fixes that move.
+
+    For each point x: its ``k`` nearest scan points, in a frame of the normal n of the nearest one (:class:`_Surface`),
+    give heights ``h = (p - x) . n`` over the tangent coordinates (u, v); ``h ~ c0 + c1 u + c2 v + c3 u^2 + c4 uv +
+    c5 v^2`` is fitted with Gaussian weights ``exp(-(|(u, v)| / s)^2)`` (s the median distance of the k) and
+    ``n_robust`` rounds of Geman-McClure reweighting (scale 1.5 median absolute residuals; another layer of the scan
+    near x, an ear's fold, gives way); x moves by ``c0 n``. A quadric averages the scan's noise over the ``k`` points
+    and keeps the surface's bend, where one tangent plane per scan point (:func:`_project`) adds both.
+
+    Returns (moved (n, 3), normals (n, 3), sigma (n,)): sigma is the standard error of c0 (sandwich estimate from the
+    weighted residuals; approximate: under the robust weights it falls short of the actual error, about 0.3x on
+    Gaussian noise, so it serves as a relative measure -- the sampler's ``fit_max_sigma`` is set on that), +inf where x lies at the scan's border (the k neighbours' centroid lies off
+    to one side along the surface by more than ``border`` times their mean distance, as in :func:`_project`: c0
+    would be an extrapolation; on randomly sampled scans about 2% of the points inside are taken for border too)."""
+    x = np.asarray(points, np.float64)
+    if len(x) == 0:
+        return x.copy(), np.zeros_like(x), np.zeros(0)
+    k = min(k, len(surface.points))
+    dist, j = surface.tree.query(x, k=k)
+    dist, j = dist.reshape(len(x), k), j.reshape(len(x), k)
+    n = surface.normals[j[:, 0]]
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1, axis=1)[:, None]
+    e2 = np.cross(n, e1)
+    rel = surface.points[j] - x[:, None]
+    u, v, h = ((rel * e[:, None]).sum(2) for e in (e1, e2, n))
+    r_uv = np.hypot(u, v)
+    w0 = np.exp(-((r_uv / np.maximum(np.median(dist, axis=1), 1e-12)[:, None]) ** 2))
+    design = np.stack([np.ones_like(u), u, v, u * u, u * v, v * v], 2)
+    w = w0
+    scale = max(float(np.median(dist[:, 0])), 1e-12)
+    for _ in range(n_robust + 1):
+        ata = np.einsum("nki,nk,nkj->nij", design, w, design) + 1e-12 * scale ** 2 * np.eye(6)
+        coef = np.linalg.solve(ata, np.einsum("nki,nk,nk->ni", design, w, h)[..., None])[..., 0]
+        res = h - np.einsum("nki,ni->nk", design, coef)
+        sig = np.maximum(1.5 * np.median(np.abs(res), axis=1, keepdims=True), 1e-6 * scale)
+        w = w0 / (1.0 + (res / sig) ** 2) ** 2
+    row0 = np.linalg.solve(ata, np.eye(6)[:, :1].repeat(len(x), 1).T[..., None])[..., 0]  # (A^T W A)^-1 e0
+    gain = np.einsum("nki,ni->nk", design, row0) * w  # d c0 / d h_k
+    sigma = np.sqrt((gain ** 2 * res ** 2).sum(1) * k / max(k - 6, 1))
+    sigma[np.hypot(u.mean(1), v.mean(1)) > border * r_uv.mean(1)] = np.inf
+    return x + n * coef[:, :1], n, sigma
 
 
 def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,

@@ -108,6 +108,7 @@ class SamplerConfig:
     field_anchor_gated: float = 1.0
     fit_neighbours: int = 16
     fit_max_sigma: float = 0.037
+    fit_tilt: bool = True
     seed: int = 0
 
 
@@ -257,7 +258,8 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
                           bases=bases, anchor_to=prior, cache=cache).controls
         confidence = None
         if config.project and config.fit_neighbours:  # onto a local quadric of the scan, where it is well fixed
-            moved, normals, sigma = _fit_heights(out[t, n_fixed:], surfaces[t], k=config.fit_neighbours)
+            moved, normals, sigma = _fit_heights(out[t, n_fixed:], surfaces[t], k=config.fit_neighbours,
+                                                 tilt=config.fit_tilt)
             trusted = sigma < config.fit_max_sigma * surfaces[t].spacing
             out[t, n_fixed:][trusted] = moved[trusted]
             confidence = trusted.astype(np.float64)  # the field takes the normal parts of these only
@@ -349,7 +351,7 @@ def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: f
 
 
 def _fit_heights(points: np.ndarray, surface: "_Surface", *, k: int = 16, n_robust: int = 3,
-                 border: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 border: float = 0.5, tilt: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Move points along the scan's normal onto a local quadric fit of the scan (moving least squares), and say how
     well the scan fixes that move.
 
@@ -393,6 +395,9 @@ def _fit_heights(points: np.ndarray, surface: "_Surface", *, k: int = 16, n_robu
     gain = np.einsum("nki,ni->nk", design, row0) * w  # d c0 / d h_k
     sigma = np.sqrt((gain ** 2 * res ** 2).sum(1) * k / max(k - 6, 1))
     sigma[np.hypot(u.mean(1), v.mean(1)) > border * r_uv.mean(1)] = np.inf
+    if tilt:  # the quadric's own normal at x: (-c1, -c2, 1) in the frame (e1, e2, n)
+        fitted = n - coef[:, 1:2] * e1 - coef[:, 2:3] * e2
+        return x + n * coef[:, :1], fitted / np.linalg.norm(fitted, axis=1)[:, None], sigma
     return x + n * coef[:, :1], n, sigma
 
 

@@ -157,5 +157,7 @@ def test_temporal_smoothing_of_offsets_lowers_scan_noise():
     prior = np.linalg.norm(_register_frames(*common, replace(base, registration=False), None,
                                             np.random.default_rng(SEED))[1:, 9:] - frames[1:, index[9:]], axis=2).mean()
     single, smoothed = error(0.0), error(2.0)
-    assert smoothed < 0.8 * single, (smoothed, single)  # (seen 0.72x; noise of 0.1 spacing per scan point)
-    assert smoothed < 0.75 * prior, (smoothed, prior)  # (seen 0.68x; frame by frame: 0.95x)
+    # (seen 0.80x; noise of 0.1 spacing per scan point. It was 0.72x when the key points went onto the nearest
+    # scan points' tangent planes, noisier frame by frame: 0.95x of the prior then, 0.81x with the quadric fit)
+    assert smoothed < 0.85 * single, (smoothed, single)
+    assert smoothed < 0.75 * prior, (smoothed, prior)  # (seen 0.65x)

@@ -65,7 +65,8 @@ def test_refinement_reduces_tracking_error():
 
 
 def test_rigid_motion_of_the_head_is_recovered():
-    from aamtrack.refine.sampler import _rigid_fit, _rigid_motion, _Surface, mesh_spacing
+    from aamtrack.refine.sampler import mesh_spacing
+    from aamtrack.refine.scan_surface import _rigid_fit, _rigid_motion, _Surface
 
     rng = np.random.default_rng(SEED + 7)
     surface = bumpy_surface(30)
@@ -84,7 +85,7 @@ def test_rigid_motion_of_the_head_is_recovered():
 
 
 def test_projection_onto_scan_along_its_normal_only():
-    from aamtrack.refine.sampler import _project, _Surface
+    from aamtrack.refine.scan_surface import _project, _Surface
 
     rng = np.random.default_rng(SEED + 8)
     u = rng.uniform(-1, 1, (3000, 2))
@@ -104,7 +105,8 @@ def test_gate_keeps_key_points_whose_prior_lies_on_the_scan():
     # point's prior "lies on the scan", so the key points must stay exactly at their prior -- where the ablation
     # without registration puts them; with the gate off the registration moves them
     from aamtrack.refine.gmm import thin
-    from aamtrack.refine.sampler import _register_frames, _Surface, mesh_spacing
+    from aamtrack.refine.sampler import _register_frames, mesh_spacing
+    from aamtrack.refine.scan_surface import _Surface
 
     rng = np.random.default_rng(SEED + 9)
     neutral = bumpy_surface(16)
@@ -132,7 +134,8 @@ def test_temporal_smoothing_of_offsets_lowers_scan_noise():
     # one registration pass over a slow bulge seen by a new random half of the surface with noise in every frame:
     # the key points' offsets from their prior, smoothed over time, land nearer the truth than frame by frame
     from aamtrack.refine.gmm import thin
-    from aamtrack.refine.sampler import _register_frames, _Surface, mesh_spacing
+    from aamtrack.refine.sampler import _register_frames, mesh_spacing
+    from aamtrack.refine.scan_surface import _Surface
 
     rng = np.random.default_rng(SEED + 10)
     neutral = bumpy_surface(24)

@@ -4,7 +4,7 @@ noisy, curved sheet whose true surface is known."""
 import numpy as np
 from conftest import SEED
 
-from aamtrack.refine.sampler import _fit_heights, _project, _Surface
+from aamtrack.refine.scan_surface import _fit_heights, _project, _Surface
 
 
 def _sheet(rng, n=6000, noise=0.0):

@@ -46,9 +46,11 @@ def _fit_heights(points: np.ndarray, surface: "_Surface", *, k: int = 16, n_robu
     near x, an ear's fold, gives way); x moves by ``c0 n``. A quadric averages the scan's noise over the ``k`` points
     and keeps the surface's bend, where one tangent plane per scan point (:func:`_project`) adds both.
 
-    Returns (moved (n, 3), normals (n, 3), sigma (n,)): sigma is the standard error of c0 (sandwich estimate from the
-    weighted residuals; approximate: under the robust weights it falls short of the actual error, about 0.3x on
-    Gaussian noise, so it serves as a relative measure -- the sampler's ``fit_max_sigma`` is set on that), +inf where x lies at the scan's border (the k neighbours' centroid lies off
+    Returns (moved (n, 3), normals (n, 3), sigma (n,)): normals are n, or with ``tilt`` the quadric's own normal at
+    x (from c1, c2; it fits the k points where the PCA normal of :class:`_Surface` fits 8); sigma is the standard error of c0
+    (sandwich estimate from the weighted residuals; approximate: under the robust weights it falls short of the
+    actual error, about 0.3x on Gaussian noise, so it serves as a relative measure -- the sampler's
+    ``fit_max_sigma`` is set on that), +inf where x lies at the scan's border (the k neighbours' centroid lies off
     to one side along the surface by more than ``border`` times their mean distance, as in :func:`_project`: c0
     would be an extrapolation; on randomly sampled scans about 2% of the points inside are taken for border too)."""
     x = np.asarray(points, np.float64)

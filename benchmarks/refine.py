@@ -2,7 +2,7 @@
 
     python benchmarks/refine.py [--frames N] [--identities K] [--scenario blind|talking] [--no-transfer]
                                 [--pull normal|mixed|plane] [--tangential W] [--smooth-frames S] [--field W]
-                                [--json OUT]
+                                [--fit-neighbours K] [--json OUT]
 
 Tracking, per identity (errors in millimetres, mean |D^t(F^0) - F^t| over frames 1..T against the exact ICT
 correspondence): the ``blind`` scenario (default) is motion the 68 landmarks see badly -- cheek puffs, nose sneers,
@@ -110,14 +110,18 @@ def _sequence(model, scenario: str, seed: int, n_frames: int):
 
 
 def sampler_config(seed: int, pull: str = "normal", tangential: float = 0.1,
-                   smooth_frames: float | None = None, field: float | None = None) -> SamplerConfig:
+                   smooth_frames: float | None = None, field: float | None = None,
+                   fit_neighbours: int | None = None) -> SamplerConfig:
     """The sampler's defaults, or with the registration's pull changed to ``pull``: "mixed" (the normal pull plus
     ``tangential`` of the step along the surface) at every scale; "plane" (point-to-plane with the key points free
     in 3D plus ``tangential`` point-to-point) at the smooth-field scales (``nodes`` > 0), the last scale (key point
     by key point) keeping the normal pull (coupled 3D normal equations there would have 3 k unknowns per frame).
     smooth_frames : the sampler's ``temporal``; field : its ``field`` (the smooth offset field's weight; None: the
-    sampler's default)."""
+    sampler's default); fit_neighbours : its ``fit_neighbours`` (0: the key points go onto the nearest scan
+    points' tangent planes instead of a local quadric; None: the sampler's default)."""
     config = SamplerConfig(seed=seed)
+    if fit_neighbours is not None:
+        config = dataclasses.replace(config, fit_neighbours=fit_neighbours)
     if smooth_frames is not None:
         config = dataclasses.replace(config, temporal=smooth_frames)
     if field is not None:
@@ -258,6 +262,8 @@ def main(argv: list[str] | None = None) -> int:
                         "(default: the sampler's, 2; 0 off)")
     parser.add_argument("--field", type=float, help="the sampler's smooth offset field, its weight (default: the "
                         "sampler's, 0.01; 0 off)")
+    parser.add_argument("--fit-neighbours", type=int, help="scan points of the sampler's local quadric fit "
+                        "(default: the sampler's, 16; 0: the nearest scan points' tangent planes, as before it)")
     parser.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = parser.parse_args(argv)
     if not ICT.exists():
@@ -265,14 +271,16 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     model = load_face_model(ICT)
     report = {"machine": machine(), "command": " ".join(["python benchmarks/refine.py", *(argv or sys.argv[1:])]),
-              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames, args.field))}
+              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames, args.field,
+                                args.fit_neighbours))}
     start = time.perf_counter()
     gmm.warmup()
     report["compile_seconds"] = time.perf_counter() - start
     report["tracking"], report["transfer"] = [], []
     for i in range(args.identities):
         track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario,
-                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames, args.field))
+                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames, args.field,
+                                args.fit_neighbours))
         report["tracking"].append(track)
         a, r, w = track["landmarks_68"], track["refined"], track["without_gmm"]
         print(f"identity {i} ({args.scenario}, {track['scan_points']} points/scan): face / far from landmarks (mm): "
@@ -295,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"(not moving the target: {trans['error_if_not_moved_mm']:.3f} mm), {trans['seconds']:.1f} s",
                   flush=True)
     report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30), config=sampler_config(
-        100, args.pull, args.tangential, args.smooth_frames, args.field))
+        100, args.pull, args.tangential, args.smooth_frames, args.field,
+                                args.fit_neighbours))
     print(f"scans of 10,000 points: {report['timing_10k']['median_seconds_per_frame']:.2f} s/frame wall, "
           f"{report['timing_10k']['median_cpu_seconds_per_frame']:.2f} s/frame CPU (median of "
           f"{report['timing_10k']['repeats']})", flush=True)

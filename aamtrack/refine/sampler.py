@@ -9,7 +9,8 @@ to frame F^t. Starting from the 68 landmarks (given in every frame by a landmark
    current key points do not see yet (a cheek puff between landmarks) draws candidates;
 4. refines the key points' positions in every frame t by non-rigid GMM registration (:mod:`.gmm`) of the thinned
    F^0 to the scan F^t (the landmarks stay where the detector put them), then moves each key point along the
-   scan's normal onto the scan (:func:`_project`) -- except where the prior already lies on the scan (``gate``);
+   scan's normal onto a robust local quadric of the scan where that is well fixed (:func:`_fit_heights`) --
+   except where the prior already lies on the scan (``gate``);
    then the normal parts of the key points' offsets from their prior are taken as one smooth field in 3D
    (``field``: :func:`_smooth_offsets`; where neighbouring normals differ, their normal moves give the moves along
    the surface that a single key point's scan cannot); then the key points' offsets from their prior are smoothed over time (``temporal``: the scans sample the
@@ -46,8 +47,10 @@ from scipy.spatial import cKDTree
 
 from .gmm import GmmConfig, _farthest_points, register, smooth_basis, thin
 from .rbf import rbf_system
+from .scan_surface import _fit_heights, _project, _rigid_motion, _Surface
 
 log = logging.getLogger(__name__)
+
 
 
 @dataclass(frozen=True)
@@ -76,7 +79,13 @@ class SamplerConfig:
     replaced by one smooth field in 3D that keeps their parts along the scan's normal (:func:`_smooth_offsets`:
     ``field`` weighs its bending energy, 0 turns it off; ``field_anchor`` holds what neither the normals nor the
     smoothness fix at the prior; ``field_anchor_gated`` does so for the key points the gate kept at their prior,
-    which the field would otherwise drag along with their neighbours); seed : of the sampling.
+    which the field would otherwise drag along with their neighbours); fit_neighbours, fit_max_sigma : the
+    projection moves each free key point onto a robust local quadric of its ``fit_neighbours`` nearest scan points
+    (:func:`_fit_heights`), only where the fitted height's standard error is below ``fit_max_sigma`` scan spacings
+    (median distance between neighbouring scan points) and the key point is not at the scan's border; the others
+    keep their place and give the smooth field no normal part (it moves them with their neighbours); the gate
+    then uses the same fit at the prior; fit_neighbours = 0: tangent planes of the nearest scan points instead
+    (:func:`_project`, the former way); seed : of the sampling.
     """
 
     n_candidates: int = 300
@@ -98,6 +107,9 @@ class SamplerConfig:
     field: float = 0.01
     field_anchor: float = 0.03
     field_anchor_gated: float = 1.0
+    fit_neighbours: int = 16
+    fit_max_sigma: float = 0.037
+    fit_tilt: bool = True
     seed: int = 0
 
 
@@ -166,29 +178,6 @@ def _predict(neutral, index, positions, kernel, smoothing, points=None):
     return system.evaluate(pts, coefs).reshape(len(pts), n_frames, 3).transpose(1, 0, 2)
 
 
-class _Surface:
-    """A scan as points with normals (PCA of 8 neighbours) for point-to-plane distances."""
-
-    def __init__(self, points: np.ndarray):
-        self.points = np.asarray(points, dtype=np.float64)
-        self.tree = cKDTree(self.points)
-        k = min(8, len(self.points))
-        _, nb = self.tree.query(self.points, k=k)
-        nb = nb.reshape(len(self.points), k)
-        local = self.points[nb] - self.points[nb].mean(1, keepdims=True)
-        _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
-        self.normals = vecs[:, :, 0]
-
-    def distance(self, query: np.ndarray, cap: float = np.inf) -> np.ndarray:
-        """Point-to-plane distance to the nearest scan point, truncated at ``cap`` (also where no scan point is
-        within ``cap``: parts of the template the scan does not cover count the same whatever their place)."""
-        dist, j = self.tree.query(query, distance_upper_bound=cap)
-        out = np.full(len(query), cap)
-        ok = np.isfinite(dist)
-        out[ok] = np.abs(((query[ok] - self.points[j[ok]]) * self.normals[j[ok]]).sum(1))
-        return np.minimum(out, cap)
-
-
 def _observed_motion(pred: np.ndarray, neutral: np.ndarray, surfaces: Sequence, cap: float) -> np.ndarray:
     """(n_frames, n_vertices, 3) motion of F^0 as the scans show it: ``D^t(F^0)`` moved along the scan's normal onto
     the nearest scan point's tangent plane (where a scan point is within ``cap``), minus F^0. Candidates are selected
@@ -243,17 +232,30 @@ def _register_frames(neutral, index, positions, n_fixed, scenes, surfaces, rigid
             continue
         out[t] = register(operator, positions[t], scenes[t], spacing=spacing, free=free, config=config.gmm,
                           bases=bases, anchor_to=prior, cache=cache).controls
-        if config.project:
+        confidence = None
+        if config.project and config.fit_neighbours:  # onto a local quadric of the scan, where it is well fixed
+            moved, normals, sigma = _fit_heights(out[t, n_fixed:], surfaces[t], k=config.fit_neighbours,
+                                                 tilt=config.fit_tilt)
+            trusted = sigma < config.fit_max_sigma * surfaces[t].spacing
+            out[t, n_fixed:][trusted] = moved[trusted]
+            confidence = trusted.astype(np.float64)  # the field takes the normal parts of these only
+        elif config.project:
             out[t, n_fixed:] = _project(out[t, n_fixed:], surfaces[t], cap)
         if config.gate:  # where the prior already lies on the scan the data have nothing to correct: keep it
-            keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            if confidence is None:
+                keep = surfaces[t].distance(prior[n_fixed:], cap) < config.gate * spacing
+            else:  # the prior's height over the scan's quadric, where that is well fixed
+                on, _, sigma_p = _fit_heights(prior[n_fixed:], surfaces[t], k=config.fit_neighbours)
+                keep = (sigma_p < config.fit_max_sigma * surfaces[t].spacing) & (
+                    np.linalg.norm(on - prior[n_fixed:], axis=1) < config.gate * spacing)
             out[t, n_fixed:][keep] = prior[n_fixed:][keep]
         if config.field > 0:  # one smooth field in 3D through the normal parts of the key points' offsets
-            normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
+            if confidence is None:
+                normals = surfaces[t].normals[surfaces[t].tree.query(out[t, n_fixed:])[1]]
             held = keep if config.gate else None  # the gated ones are held at their prior more firmly
             out[t, n_fixed:] = prior[n_fixed:] + _smooth_offsets(out[t, n_fixed:] - prior[n_fixed:], normals,
                                                                  bending, config.field, config.field_anchor, held,
-                                                                 config.field_anchor_gated)
+                                                                 config.field_anchor_gated, confidence)
         if progress is not None:
             progress(1)
     if config.registration and config.temporal > 0 and len(out) > 2:
@@ -282,25 +284,28 @@ def _bending(rest: np.ndarray, n_fixed: int, *, k: int = 8) -> scipy.sparse.csr_
 
 
 def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: float, anchor: float,
-                    held: np.ndarray | None = None, held_anchor: float = 1.0) -> np.ndarray:
+                    held: np.ndarray | None = None, held_anchor: float = 1.0,
+                    confidence: np.ndarray | None = None) -> np.ndarray:
     """The free key points' offsets from their prior (n_free, 3) as one smooth field in 3D that keeps their parts
     along the scan's normal: ``delta`` minimises
 
         sum_k (n_k . delta_k - n_k . offset_k)^2 + a_k |delta_k|^2 + weight * delta^T (bending (x) I_3) delta
 
     (n_k the normal of the scan point nearest to key point k; bending: :func:`_bending`; a_k = ``anchor``, or
-    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan), and then each
-    key point's part along its normal is set back to the measured one, so that only the moves along the surface
-    come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
+    ``held_anchor`` where ``held``: the gate's key points, whose prior already lies on the scan; with
+    ``confidence`` (n_free,) the first term of key point k is weighted by confidence_k, 0 where the scan does not
+    fix its normal part), and then each key point's part along its normal is set back to the measured one (where
+    confidence_k > 0.5), so that only the moves along the surface come from the field. The scan fixes a key point only along its normal; where the normals of neighbouring key
     points differ, the smoothness turns their normal moves into moves along the surface, and the anchor holds what
     neither fixes at the prior. Conjugate gradients with the 3x3 diagonal blocks as preconditioner, from the normal
     parts (approximate: relative residual 1e-6)."""
     r = (offsets * normals).sum(1)
     n = len(r)
+    c = np.ones(n) if confidence is None else np.asarray(confidence, np.float64)
     a = np.full(n, float(anchor))
     if held is not None:
         a[np.asarray(held, bool)] = held_anchor
-    nn = normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
+    nn = c[:, None, None] * normals[:, :, None] * normals[:, None, :] + a[:, None, None] * np.eye(3)
     inv = np.linalg.inv(nn + weight * bending.diagonal()[:, None, None] * np.eye(3))
 
     def matvec(v):
@@ -311,98 +316,14 @@ def _smooth_offsets(offsets: np.ndarray, normals: np.ndarray, bending, weight: f
         return np.einsum("nij,nj->ni", inv, v.reshape(n, 3)).ravel()
 
     shape = (3 * n, 3 * n)
-    b = (normals * r[:, None]).ravel()
+    b = (normals * (c * r)[:, None]).ravel()
     sol, _ = scipy.sparse.linalg.cg(scipy.sparse.linalg.LinearOperator(shape, matvec=matvec, dtype=np.float64), b,
                                     x0=b.copy(), rtol=1e-6, maxiter=200,
                                     M=scipy.sparse.linalg.LinearOperator(shape, matvec=precond, dtype=np.float64))
     sol = sol.reshape(n, 3)
-    return sol - normals * ((sol * normals).sum(1) - r)[:, None]  # the measured normal parts
-
-
-def _project(points: np.ndarray, surface: "_Surface", cap: float, *, k: int = 8, n_iter: int = 3,
-             border: float = 0.5) -> np.ndarray:
-    """Move points along the scan's normal onto it: to the Gaussian-weighted mean of the tangent planes of their
-    ``k`` nearest scan points (weights ``exp(-d^2 / s^2)``, s the distance to the nearest of them). Points stay
-    where no scan point is within ``cap`` and at the scan's border (their neighbours' centroid lies off to one
-    side along the surface by more than ``border`` times their mean distance: the tangent planes of a border
-    are poor). Along the surface nothing moves. (Each tangent plane leaves about ``curvature * d^2 / 2`` of the
-    surface's bend: approximate, a small part of a millimetre on a face scan.)"""
-    x = np.array(points, np.float64)
-    for _ in range(n_iter):
-        dist, j = surface.tree.query(x, k=k, distance_upper_bound=cap)
-        ok = np.isfinite(dist[:, 0])
-        if not ok.any():
-            break
-        d, jj = dist[ok], j[ok]
-        valid = np.isfinite(d)
-        jj = np.where(valid, jj, jj[:, :1])
-        n = surface.normals[jj]
-        n = n * np.sign((n * n[:, :1]).sum(2))[:, :, None]  # one orientation per point
-        w = np.where(valid, np.exp(-((d / np.maximum(d[:, :1], 1e-12 * cap)) ** 2)), 0.0)
-        normal = (n * w[:, :, None]).sum(1)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
-        rel = surface.points[jj] - x[ok][:, None]
-        centroid = (rel * valid[:, :, None]).sum(1) / valid.sum(1)[:, None]
-        along = centroid - normal * (centroid * normal).sum(1)[:, None]
-        spread = (np.linalg.norm(rel, axis=2) * valid).sum(1) / valid.sum(1)
-        inside = np.linalg.norm(along, axis=1) <= border * spread
-        offset = -(rel * n).sum(2)
-        move = normal * ((w * offset).sum(1) / w.sum(1))[:, None]
-        x[np.flatnonzero(ok)[inside]] -= move[inside]
-    return x
-
-
-def _rigid_fit(src: np.ndarray, dst: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least-squares rotation R (3, 3) and shift t (3,) with ``dst ~ src @ R.T + t`` (Kabsch)."""
-    w = weight / max(float(weight.sum()), 1e-300)
-    mu_s, mu_d = w @ src, w @ dst
-    u, _, vt = np.linalg.svd(((dst - mu_d) * w[:, None]).T @ (src - mu_s))
-    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
-    rot = u @ d @ vt
-    return rot, mu_d - mu_s @ rot.T
-
-
-def _rotation(omega: np.ndarray) -> np.ndarray:
-    """Rotation matrix of the rotation vector omega (3,) (Rodrigues)."""
-    angle = float(np.linalg.norm(omega))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = omega / angle
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * kx @ kx
-
-
-def _rigid_motion(points, surface, landmarks, landmarks0, spacing, n_iter: int = 30):
-    """The head's rigid motion F^0 -> scan: a function (n, 3) -> (n, 3).
-
-    Starts from the landmarks' best rigid fit (biased by expressions: the landmarks move with the jaw and lips),
-    then robust point-to-plane ICP of the (thinned) F^0 to the scan (:class:`_Surface`): points without scan within
-    ``4 * spacing`` are left out, and residuals are weighted by Geman-McClure with a scale of 1.5 median absolute
-    residuals, so that the parts of the face that move on their own (jaw, cheeks, lips) give way to the rigid
-    rest (forehead, nose, temples)."""
-    rot, shift = _rigid_fit(landmarks0, landmarks, np.ones(len(landmarks0)))
-    points = np.asarray(points, np.float64)
-    centre = points.mean(0)
-    for _ in range(n_iter):
-        x = points @ rot.T + shift
-        dist, j = surface.tree.query(x, distance_upper_bound=4.0 * spacing)
-        ok = np.isfinite(dist)
-        if ok.sum() < 6:
-            break
-        xo, no = x[ok], surface.normals[j[ok]]
-        r = ((xo - surface.points[j[ok]]) * no).sum(1)
-        scale = max(1.5 * float(np.median(np.abs(r))), 1e-3 * spacing)
-        w = 1.0 / (1.0 + (r / scale) ** 2) ** 2
-        c = centre @ rot.T + shift
-        jac = np.hstack([np.cross(xo - c, no), no])
-        a = jac.T @ (jac * w[:, None]) + 1e-9 * np.eye(6)
-        delta = np.linalg.solve(a, -jac.T @ (w * r))
-        step = _rotation(delta[:3])
-        rot = step @ rot
-        shift = (shift - c) @ step.T + c + delta[3:]
-        if np.linalg.norm(delta[:3]) * 10.0 * spacing + np.linalg.norm(delta[3:]) < 1e-4 * spacing:
-            break
-    return lambda p: p @ rot.T + shift
+    fix = c > 0.5  # the measured normal parts, where measured well
+    sol[fix] -= normals[fix] * ((sol[fix] * normals[fix]).sum(1) - r[fix])[:, None]
+    return sol
 
 
 def refine_key_points(

@@ -53,3 +53,23 @@ def test_without_smoothness_only_the_normal_parts_stay_and_held_points_move_less
     assert along_free[held].mean() > 1e-4  # (seen 3e-3) the smoothness moves key points along the surface
     assert along_firm[held].mean() < 0.3 * along_free[held].mean()  # (seen 0.15x) less where held
     assert np.allclose((firm * normals).sum(1), (offsets * normals).sum(1), atol=1e-12)  # normal parts kept
+
+
+def test_key_points_without_confidence_follow_their_neighbours():
+    # a tenth of the key points get a wildly wrong normal offset (what a fit at the scan's border or between two
+    # layers gives); with confidence 0 the field ignores it and moves them with their neighbours instead
+    rng = np.random.default_rng(SEED + 2)
+    points, truth = _cap(rng)
+    normals = points[40:]
+    offsets = normals * (truth[40:] * normals).sum(1)[:, None]  # exact normal parts
+    bad = rng.random(len(normals)) < 0.1
+    offsets[bad] += normals[bad] * rng.choice([-0.2, 0.2], (bad.sum(), 1))  # 4x the largest true offset
+    bending = _bending(points, 40)
+    trusting = _smooth_offsets(offsets, normals, bending, 0.1, 1e-3)
+    confidence = (~bad).astype(float)
+    careful = _smooth_offsets(offsets, normals, bending, 0.1, 1e-3, confidence=confidence)
+    err_trusting = np.linalg.norm(trusting - truth[40:], axis=1)[bad].mean()
+    err_careful = np.linalg.norm(careful - truth[40:], axis=1)[bad].mean()
+    assert err_careful < 0.15 * err_trusting, (err_careful, err_trusting)  # (seen 0.06x)
+    good = ~bad  # the others keep their measured normal parts exactly
+    assert np.allclose((careful[good] * normals[good]).sum(1), (offsets[good] * normals[good]).sum(1), atol=1e-12)

@@ -52,7 +52,6 @@ from .scan_surface import _fit_heights, _project, _rigid_motion, _Surface
 log = logging.getLogger(__name__)
 
 
-
 @dataclass(frozen=True)
 class SamplerConfig:
     """Options of the key point sampler.

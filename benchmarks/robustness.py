@@ -14,7 +14,9 @@ Sets
 Variants (each an image transform that moves the reference points with the image; see ``VARIANTS``)
     clean, dark_cast (x0.55/0.25/0.40 on B/G/R: a third of the brightness, magenta-blue stage light),
     low_contrast (x0.3 about grey 128), blur (Gaussian, sigma = 0.06 x outer eye distance: 3.9 px on cap12,
-    7 px on helen), noise (Gaussian, sigma 25 grey levels per channel), jpeg20 (JPEG quality 20), small30
+    7 px on helen), noise (Gaussian, sigma 25 grey levels per channel), jpeg20 (JPEG quality 20), overexposed
+    (x2.2, clipped), side_light (lit from the image's right, the face's left side at 0.15 of the light, the edge
+    through the face's centre), spotlight (a warm spot on the face, 0.08 of the light away from it), small30
     (shrunk so the outer eye corners are 30 px apart, INTER_AREA, centred in a grey frame of the original size),
     rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
     screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``); video only: rot_sweep (roll
@@ -87,6 +89,11 @@ CONTRAST = 0.3
 BLUR_EYE = 0.06                  # Gaussian sigma / outer eye distance
 NOISE_SIGMA = 25.0
 JPEG_QUALITY = 20
+OVER_GAIN = 2.2                  # overexposed: x2.2, clipped (most skin saturates)
+SIDE_FLOOR = 0.15                # side light: the dark side's share of the light
+SIDE_WIDTH = 0.15                # side light: the light's edge, in face widths (logistic scale)
+SPOT_SIGMA = 0.9                 # spotlight: Gaussian radius in face widths
+SPOT_GAINS = (0.8, 1.0, 1.25)    # spotlight: warm (B, G, R)
 SMALL_EYE_PX = 30.0
 ROTATION_DEG = 30.0
 SWEEP_PERIOD_S = 10.0
@@ -122,6 +129,44 @@ def dark_cast(image, points, *, gains=DARK_GAINS):
 def low_contrast(image, points, *, contrast=CONTRAST, mid=128.0):
     """Washed out: ``mid + contrast * (image - mid)``."""
     out = mid + contrast * (image.astype(np.float32) - mid)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8), np.array(points, dtype=np.float64)
+
+
+def _face(points) -> tuple[np.ndarray, float]:
+    """Centre and width (x extent) of the reference face."""
+    points = np.asarray(points, dtype=np.float64)
+    return points.mean(0), float(np.ptp(points[:, 0]))
+
+
+def _lit(image, light) -> np.ndarray:
+    """image times a light map (H, W) (per channel), clipped to uint8; grey images stay grey."""
+    light = np.asarray(light, np.float32)
+    out = image.astype(np.float32) * (light[..., None] if image.ndim == 3 else light)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def overexposed(image, points, *, gain: float = OVER_GAIN):
+    """Too much light: every pixel times ``gain``, clipped at 255 (the bright skin saturates)."""
+    return _lit(image, np.full(image.shape[:2], gain)), np.array(points, dtype=np.float64)
+
+
+def side_light(image, points, *, floor: float = SIDE_FLOOR, width: float = SIDE_WIDTH):
+    """Light from one side: x1.3 on the face's right half (image right), ``floor`` x1.3 on its left, a logistic
+    edge of ``width`` face widths through the face's centre (the light follows the face, as a stage light does)."""
+    (cx, _), w = _face(points)
+    x = np.arange(image.shape[1], dtype=np.float64)
+    ramp = floor + (1.0 - floor) / (1.0 + np.exp(-(x - cx) / (width * w)))
+    return _lit(image, np.tile(1.3 * ramp, (image.shape[0], 1))), np.array(points, dtype=np.float64)
+
+
+def spotlight(image, points, *, sigma: float = SPOT_SIGMA, gains=SPOT_GAINS):
+    """A warm spot on the face in the dark: light 0.08 + 1.6 exp(-d^2 / 2 (sigma face widths)^2) about the face's
+    centre, then channel gains (B, G, R); a grey image is turned BGR first."""
+    (cx, cy), w = _face(points)
+    yy, xx = np.mgrid[0:image.shape[0], 0:image.shape[1]]
+    light = 0.08 + 1.6 * np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2.0 * (sigma * w) ** 2))
+    bgr = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    out = _lit(bgr, light).astype(np.float32) * np.asarray(gains, np.float32)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8), np.array(points, dtype=np.float64)
 
 
@@ -279,6 +324,9 @@ VARIANTS = (
     Variant("blur", f"Gaussian sigma {BLUR_EYE} x eye distance", _each(blur, lambda e: {"sigma": BLUR_EYE * e})),
     Variant("noise", f"Gaussian noise sigma {NOISE_SIGMA:g}", _each(add_noise, random=True)),
     Variant("jpeg20", f"JPEG quality {JPEG_QUALITY}", _each(jpeg)),
+    Variant("overexposed", f"x{OVER_GAIN:g}, clipped", _each(overexposed)),
+    Variant("side_light", f"lit from the right, the left side x{SIDE_FLOOR:g}", _each(side_light)),
+    Variant("spotlight", f"a warm spot (radius {SPOT_SIGMA:g} face widths) in the dark", _each(spotlight)),
     Variant("small30", f"shrunk to {SMALL_EYE_PX:g} px between the outer eye corners, in a grey frame",
             _each(shrink, lambda e: {"scale": SMALL_EYE_PX / e})),
     Variant(f"rot+{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg counter-clockwise",

@@ -156,6 +156,26 @@ def test_photometric_transforms_keep_the_points_and_do_what_they_say():
     assert out.mean() == pytest.approx(f.mean(), abs=2.0)
     assert np.array_equal(p, pts)
 
+    out, p = rb.overexposed(image, pts, gain=2.0)
+    np.testing.assert_array_equal(out, np.clip(2 * image.astype(np.int64), 0, 255))
+    assert np.array_equal(p, pts)
+
+    out, p = rb.side_light(image, pts)
+    (cx, _), w = pts.mean(0), np.ptp(pts[:, 0])
+    left, right = out[:, : int(cx - w)].astype(float), out[:, int(cx + w):].astype(float)
+    fl, fr = f[:, : int(cx - w)], f[:, int(cx + w):]
+    assert left.mean() == pytest.approx(1.3 * rb.SIDE_FLOOR * fl.mean(), rel=0.1)  # the dark side
+    assert right.mean() == pytest.approx(min(255, 1.3 * fr.mean()), rel=0.1)  # the lit side
+    assert np.array_equal(p, pts)
+
+    out, p = rb.spotlight(image, pts)
+    c = np.rint(pts.mean(0)).astype(int)
+    at_face = out[c[1], c[0]].astype(float)
+    np.testing.assert_allclose(at_face, np.clip(np.rint(np.rint(f[c[1], c[0]] * 1.68) * rb.SPOT_GAINS), 0, 255),
+                               atol=1.0)  # the spot's centre: 0.08 + 1.6
+    assert out[0, 0].max() < 0.2 * 255 and np.array_equal(p, pts)  # the corners are dark
+    assert rb.spotlight(image[..., 0], pts)[0].shape == image.shape  # a grey image comes back BGR
+
 
 # ----------------------------------------------------------------------------------------------- blank gaps
 

@@ -31,6 +31,8 @@ from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
 FORMAT_VERSION = 4  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator
+STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
+"""The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
 
 
@@ -73,7 +75,7 @@ class Couple:
 @dataclass(frozen=True)
 class Validator:
     """Logistic fit validator: confidence = 1 / (1 + exp(-(w . (x - mean) / scale + d . z + bias))) over the fit
-    statistics x named ``names`` (``aamtrack.search.STAT_NAMES``) and, for the landmark validator, the landmark
+    statistics x named ``names`` (``STAT_NAMES``) and, for the landmark validator, the landmark
     cascade's descriptors z at the final points (``LandmarkCascade.validator_features``) weighted by
     ``descriptor_weights`` d (float32, None for a statistics-only validator)."""
 
@@ -370,6 +372,8 @@ def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
     if not isinstance(spec, dict) or not isinstance(spec.get("names"), list):
         c.fail(f"unreadable {key} settings")
     names = tuple(map(str, spec["names"]))
+    if names != STAT_NAMES:  # the search computes these and no others
+        c.fail(f"{key} reads {', '.join(names) or 'nothing'}; this version computes {', '.join(STAT_NAMES)}")
     k = len(names)
     try:
         bias = float(spec["bias"])
@@ -407,4 +411,4 @@ def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
                            c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)))
 
 
-__all__ = ["FORMAT_VERSION", "N_POSE", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]
+__all__ = ["FORMAT_VERSION", "N_POSE", "STAT_NAMES", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

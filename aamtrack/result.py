@@ -21,7 +21,7 @@ class FitResult:
     vertices : (n_vertices, 2) float64 -- all model vertices in image pixels
     residual : float -- final RMS of the normalised texture residual
     iterations : tuple of int -- iterations (cascade stages) run per couple, coarse to fine
-    stats : tuple of float -- the fit statistics the validator reads (``aamtrack.search.STAT_NAMES``)
+    stats : tuple of float -- the fit statistics the validator reads (``aamtrack.model.STAT_NAMES``)
     confidence : float -- 0..1, the model's validator on ``stats``: how likely the fit is on a face
     """
 

@@ -24,7 +24,6 @@ MAX_ITER = 30
 TOL = 1e-3
 DELTA_TOL = 0.002  # Jacobian search: an update below this (face widths, radians, log-scale; x5 in prior spreads) stops
 N_STEPS = 4  # Jacobian search: step sizes tried per iteration, 1, 1/2, 1/4, 1/8
-STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 
 
 class Searcher:
@@ -141,7 +140,7 @@ class Searcher:
         return project(self.shape3d, self.basis, p, np.empty((self.model.shape.n_vertices, 2)))
 
     def statistics(self, levels: Levels, p: np.ndarray, r: float | None = None) -> tuple:
-        """The fit statistics the validator reads (``STAT_NAMES``), on the finest couple at p: RMS projected
+        """The fit statistics the validator reads (``model.STAT_NAMES``), on the finest couple at p: RMS projected
         residual, correlation of the texture with the mean texture, mean texture magnitude, and the size of the
         pose update the couple would still make (log10 of 0.001 + face widths + radians + log-scale: a fit the
         cascade would move no further has about -3)."""

@@ -112,10 +112,13 @@ def _damaged(synth_model):
                                        synth_model.landmark_validator.descriptor_weights[:-1]}, {}, "has shape"),
         ("landmark validator without cascade", {}, {"landmark_cascade": None}, "without a landmark cascade"),
         ("unreadable landmark validator", {}, {"landmark_validator": {"names": 3}}, "unreadable landmark_validator"),
+        ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
+                                           "validator/scale": np.ones(5)},
+         {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(18))
+@pytest.mark.parametrize("case", range(19))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

@@ -24,8 +24,8 @@ from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
 from ..mesh.skirt import with_skirt
 from ..mesh.texture_map import texture_frame
 from ..metrics import nme
-from ..model import Couple, Model, Texture, Validator
-from ..search import STAT_NAMES, Searcher
+from ..model import STAT_NAMES, Couple, Model, Texture, Validator
+from ..search import Searcher
 from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
 from .detection import box_geometry, training_boxes
 from .profile import profile_faces

@@ -1,4 +1,4 @@
-"""The fit validator: a logistic regression on a few statistics of a finished fit (``aamtrack.search.STAT_NAMES``)
+"""The fit validator: a logistic regression on a few statistics of a finished fit (``aamtrack.model.STAT_NAMES``)
 that says how likely the fit sits on a face, learned at training time from
 
 - positives: the training fits the cascade brought close to the labels (NME below ``good_nme``);

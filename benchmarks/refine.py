@@ -270,17 +270,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"needs {ICT} (absent)", file=sys.stderr)
         return 2
     model = load_face_model(ICT)
+
+    def config(seed: int) -> SamplerConfig:  # the command line's sampler options, one seed
+        return sampler_config(seed, args.pull, args.tangential, args.smooth_frames, args.field, args.fit_neighbours)
+
     report = {"machine": machine(), "command": " ".join(["python benchmarks/refine.py", *(argv or sys.argv[1:])]),
-              "sampler": repr(sampler_config(0, args.pull, args.tangential, args.smooth_frames, args.field,
-                                args.fit_neighbours))}
+              "sampler": repr(config(0))}
     start = time.perf_counter()
     gmm.warmup()
     report["compile_seconds"] = time.perf_counter() - start
     report["tracking"], report["transfer"] = [], []
     for i in range(args.identities):
-        track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario,
-                            config=sampler_config(i, args.pull, args.tangential, args.smooth_frames, args.field,
-                                args.fit_neighbours))
+        track, _ = tracking(model, seed=i, n_frames=args.frames, scenario=args.scenario, config=config(i))
         report["tracking"].append(track)
         a, r, w = track["landmarks_68"], track["refined"], track["without_gmm"]
         print(f"identity {i} ({args.scenario}, {track['scan_points']} points/scan): face / far from landmarks (mm): "
@@ -302,9 +303,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"identity {i} -> other identity: transfer error {trans['error_mm']:.3f} mm "
                   f"(not moving the target: {trans['error_if_not_moved_mm']:.3f} mm), {trans['seconds']:.1f} s",
                   flush=True)
-    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30), config=sampler_config(
-        100, args.pull, args.tangential, args.smooth_frames, args.field,
-                                args.fit_neighbours))
+    report["timing_10k"] = timing_10k(model, n_frames=min(args.frames, 30), config=config(100))
     print(f"scans of 10,000 points: {report['timing_10k']['median_seconds_per_frame']:.2f} s/frame wall, "
           f"{report['timing_10k']['median_cpu_seconds_per_frame']:.2f} s/frame CPU (median of "
           f"{report['timing_10k']['repeats']})", flush=True)

@@ -25,6 +25,11 @@ import numpy as np
 from ..model import Validator
 
 
+def _class_weights(y: np.ndarray) -> np.ndarray:
+    """(n,) sample weights of labels y in {0, 1} that make each class weigh n / 2 in all."""
+    return np.where(y > 0.5, 0.5 / max(y.mean(), 1e-9), 0.5 / max(1 - y.mean(), 1e-9))
+
+
 def logistic_fit(X: np.ndarray, y: np.ndarray, names: tuple, *, l2: float = 1e-3, n_iter: int = 50) -> Validator:
     """Logistic regression by Newton's method (IRLS) on standardised features X (n, k), labels y (n,) in {0, 1},
     classes weighted to count equally; a small L2 penalty on the weights (not the bias)."""
@@ -32,7 +37,7 @@ def logistic_fit(X: np.ndarray, y: np.ndarray, names: tuple, *, l2: float = 1e-3
     scale = X.std(0) + 1e-9
     Z = np.column_stack([(X - mean) / scale, np.ones(len(X))])
     w = np.zeros(Z.shape[1])
-    cw = np.where(y > 0.5, 0.5 / max(y.mean(), 1e-9), 0.5 / max(1 - y.mean(), 1e-9))
+    cw = _class_weights(y)
     reg = np.r_[np.full(Z.shape[1] - 1, l2 * len(X)), 0.0]
     for _ in range(n_iter):
         p = 1.0 / (1.0 + np.exp(-np.clip(Z @ w, -50, 50)))
@@ -93,7 +98,7 @@ def landmark_validator_fit(S: np.ndarray, Z: np.ndarray, y: np.ndarray, names: t
     mean_s, scale_s = S.mean(0), S.std(0) + 1e-9
     mean_z, scale_z = Z.mean(0), Z.std(0) + 1e-6
     A = np.column_stack([(S - mean_s) / scale_s, (Z - mean_z) / scale_z, np.ones(len(S))])
-    cw = np.where(y > 0.5, 0.5 / max(y.mean(), 1e-9), 0.5 / max(1 - y.mean(), 1e-9)) / len(y)
+    cw = _class_weights(y) / len(y)
     reg = np.r_[np.full(A.shape[1] - 1, l2), 0.0]
 
     def loss(w):

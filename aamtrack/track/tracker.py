@@ -54,7 +54,12 @@ class TrackerConfig:
     patches) do most of the work there: cap12, 3D, raw NME against the dlib reference, search alone 0.0293, last
     1 stage 0.0289, last 2 0.0241, all 4 0.0232 (last 3: 0.0230 with a model trained before), at about half the
     cascade's time for 2. (Starting the last
-    stages from the previous frame's correction instead drifted: 0.60.)"""
+    stages from the previous frame's correction instead drifted: 0.60.)
+    rescue: when the detection's fit is still not accepted (confidence below ``min_confidence``), the search
+    also runs from the box moved by each (x shift, y shift, scale) (shifts in box widths, about the box's
+    centre), all on one crop, and the most confident fit is kept (``Tracker.rescue``). Haar's box can sit on
+    a face's forehead and hair under side light, where no start of the box itself reaches the face; () never
+    does. Costs about as much as one detection's fit, on frames where a box was found but its fit failed."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7
@@ -71,6 +76,8 @@ class TrackerConfig:
                      (1.0, 0.0, -0.21), (1.0, 0.0, 0.21))
     turned_retry_below: float = 0.9
     landmark_stages_tracked: int = 2
+    rescue: tuple = ((0.0, 0.3, 1.0), (0.0, -0.3, 1.0), (0.3, 0.0, 1.0), (-0.3, 0.0, 1.0), (0.0, 0.3, 1.25),
+                     (0.0, -0.3, 1.25), (0.3, 0.0, 1.25), (-0.3, 0.0, 1.25))
 
 
 class Tracker:
@@ -157,8 +164,8 @@ class Tracker:
         box is at least half as large as the upright box: a small patch elsewhere is not the face (helen_test: a
         face fitted upright at 0.88 lost to a 25 px "face" on a mark on its cheek, at 0.99), while a larger box is
         most often the face the upright frame missed (rolled stills: the upright box is then mostly a small
-        patch, accepted at 0.6-0.8; requiring about equal sizes lost 4% of them). Returns (fit or None,
-        timings)."""
+        patch, accepted at 0.6-0.8; requiring about equal sizes lost 4% of them). A fit still not accepted
+        then tries the moved boxes of ``rescue``. Returns (fit or None, timings)."""
         t0 = time.perf_counter()
         found = self.detector.find(image)
         timings = {"detect": time.perf_counter() - t0}
@@ -182,10 +189,30 @@ class Tracker:
                 t_pyr += t
                 if alt.confidence > res.confidence and (upright is None or 2.0 * boxes[0][2] >= upright):
                     res = alt
+        if res.confidence < self.config.min_confidence and self.config.rescue:
+            alt, t = self.rescue(image, found, shape_params)
+            t_pyr += t
+            if alt.confidence > res.confidence:
+                res = alt
         timings["detect"] += t_detect
         timings["pyramid"] = t_pyr
         timings["search"] = time.perf_counter() - t1 - t_pyr - t_detect
         return res, timings
+
+    def rescue(self, image: np.ndarray, found: tuple, shape_params=None) -> tuple[FitResult, float]:
+        """The most confident fit from the rough poses of the detection's box (box, angle) moved by each of
+        ``TrackerConfig.rescue`` (x shift, y shift, scale), searched on one crop, then refined as a detection's
+        fit is. Returns (fit, seconds spent on the crop's levels)."""
+        (x, y, w, h), angle = found
+        starts = [self.initial_p((x + dx * w + 0.5 * w * (1.0 - s), y + dy * w + 0.5 * h * (1.0 - s), s * w, s * h),
+                                 shape_params, angle=angle, shape=image.shape) for dx, dy, s in self.config.rescue]
+        crop = self.crop(image, starts)
+        refine = self.config.refine_detection
+        res, t_pyr = self.fit_roi(image, starts, shape_params, crop=crop, landmarks=not refine)
+        if refine:
+            res, t_more = self.fit_roi(image, [res.p], shape_params, first=self.config.skip_coarse, crop=crop)
+            t_pyr += t_more
+        return res, t_pyr
 
     def detection_starts(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> list:
         """The search starts after a detection: the rough pose from the box (poster: guessed feature points,

@@ -5,7 +5,7 @@ import pytest
 
 from aamtrack.io.frames import open_frames
 from aamtrack.track.replay import realtime
-from aamtrack.track.tracker import Tracker
+from aamtrack.track.tracker import Tracker, TrackerConfig
 import synth
 
 
@@ -192,7 +192,7 @@ def test_a_more_confident_turned_fit_replaces_the_upright_one(synth_model):
 
     ref = synth.face_layout()
     image = synth.render(ref, synth.project2d(ref, np.radians(15), 130, 160, 120), (320, 240))
-    on = UprightDoubted(synth_model)
+    on = UprightDoubted(synth_model, config=TrackerConfig(rescue=()))  # the moved boxes' fits are not marked
     off = UprightDoubted(synth_model, config=dc_replace(on.config, turned_retry_below=0.0))
     turned_fit, _ = on.fit_detection(image, (on.detector.detect_all(image, 30.0)[0], 30.0))
     assert turned_fit.confidence > 0.001
@@ -317,3 +317,39 @@ def test_shipped_model_rejects_fits_off_the_face():
     photo, pts = load_pair(*[p for p in pairs if p[0].stem == "3209573417_2"][0])
     res, _ = tracker.detect_and_fit(photo)
     assert res is None or res.confidence < tracker.config.min_confidence or nme(res.landmarks, pts) < 0.08
+
+
+@pytest.mark.shared_data
+def test_a_box_on_the_forehead_is_rescued_by_moved_boxes():
+    """Haar's box on a face's forehead and hair (as under side light): helen_test photos whose detection box is
+    moved up by 0.35 of its width and shrunk to 0.9. Where the fit from that box is rejected (``rescue`` off),
+    the moved boxes of ``TrackerConfig.rescue`` find the face (rescue on): accepted, on the face."""
+    from dataclasses import replace as dc_replace
+
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.metrics import nme
+    from aamtrack.model import load_model
+    from aamtrack.models import default_model_path
+    from conftest import shared_path
+
+    def boxes_at(angle, found):
+        b = found.copy()
+        b[:, 1] -= 0.35 * b[:, 2]
+        b[:, :2] += 0.05 * b[:, 2:]
+        b[:, 2:] *= 0.9
+        return b
+    model = load_model(default_model_path("3d"))
+    on = _turned_detector(Tracker(model), boxes_at)
+    off = _turned_detector(Tracker(model, config=dc_replace(on.config, rescue=())), boxes_at)
+    lost = rescued = 0
+    for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:60:5]:
+        photo, pts = load_pair(img_path, pts_path)
+        res_off, _ = off.detect_and_fit(photo)
+        if res_off is None or res_off.confidence >= off.config.min_confidence:
+            continue  # only photos the moved box loses
+        lost += 1
+        res_on, _ = on.detect_and_fit(photo)
+        rescued += res_on.confidence >= on.config.min_confidence and nme(res_on.landmarks, pts) < 0.08
+    print(f"lost from the moved box {lost}, rescued {rescued}")
+    assert lost >= 4  # the premise: such a box loses the face
+    assert rescued >= 0.75 * lost

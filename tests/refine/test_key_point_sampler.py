@@ -56,7 +56,8 @@ def test_refinement_reduces_tracking_error():
     assert list(keys.errors) == sorted(keys.errors, reverse=True)  # each accepted round lowers the error
     before = np.linalg.norm(deform_frames(neutral, keys.__class__(landmarks, frames[:, landmarks], 9)) - frames, axis=2)
     after = np.linalg.norm(deform_frames(neutral, keys) - frames, axis=2)
-    # (seen 0.85x and 0.72x -- 0.79x and 0.66x with the former tangent-plane projection; without the temporal
+    # (seen 0.85x and 0.72x, with the gate at 0.02 spacings and at 0.01 alike -- 0.86x / 0.72x at 0.005, 1.08x /
+    # 0.81x with the gate off; 0.79x and 0.66x with the former tangent-plane projection; without the temporal
     # smoothing 0.71x and 0.59x before the quadric fit: a whole puff in 6 frames is fast
     # for a smoothing of 2 frames)
     assert after.mean() < 0.9 * before.mean()  # lower than with the 9 landmarks alone
@@ -165,3 +166,30 @@ def test_temporal_smoothing_of_offsets_lowers_scan_noise():
     # scan points' tangent planes, noisier frame by frame: 0.95x of the prior then, 0.81x with the quadric fit)
     assert smoothed < 0.85 * single, (smoothed, single)
     assert smoothed < 0.75 * prior, (smoothed, prior)  # (seen 0.65x)
+
+
+def test_default_gate_tells_the_scan_from_a_real_offset():
+    # the gate holds a key point at its prior where the prior's height over the scan's local quadric is below
+    # ``gate`` (thinned) spacings. At the default, most priors lying exactly on the surface must pass it on a scan
+    # with the benchmark's relative noise (0.05 mm per point, thinned spacing 5.1 mm: 0.01 spacings), and priors
+    # 3x the gate off the surface (0.15 mm there) must not: the gate sits at about twice the fit's own noise.
+    from aamtrack.refine.gmm import thin
+    from aamtrack.refine.sampler import mesh_spacing
+    from aamtrack.refine.scan_surface import _fit_heights, _Surface
+
+    rng = np.random.default_rng(SEED + 11)
+    fine = bumpy_surface(90, rng=rng)
+    base = mesh_spacing(fine)
+    spacing = mesh_spacing(fine[thin(fine, 2.75 * base, rng)])  # the sampler's unit for the gate
+    scan = fine[rng.choice(len(fine), int(0.6 * len(fine)), replace=False)]
+    scan = _Surface(scan + 0.01 * spacing * rng.standard_normal(scan.shape))
+    inner = np.flatnonzero(np.abs(fine[:, :2]).max(1) < 0.8)
+    on = fine[rng.choice(inner, 200, replace=False)]
+    gate = SamplerConfig().gate * spacing
+    moved, normals, _ = _fit_heights(on, scan, k=16, tilt=True)
+    held_on = np.mean(np.linalg.norm(moved - on, axis=1) < gate)
+    off = on + normals * (3.0 * gate)
+    moved_off, _, _ = _fit_heights(off, scan, k=16)
+    held_off = np.mean(np.linalg.norm(moved_off - off, axis=1) < gate)
+    assert held_on > 0.75, held_on  # (seen 0.85; 0.995 at the former gate, 0.02) on the surface: mostly held
+    assert held_off < 0.05, held_off  # (seen 0.005) a real offset: refined

@@ -39,7 +39,7 @@ def test_verbose_report_and_smoothing(tmp_path, away_video, model_file, capsys, 
     assert any("face re-detected after" in e and "frames lost" in e for e in events), events
     cols = read_tracking_csv(out / "away.csv")
     back = int(np.flatnonzero((cols["status"] == "detected") & (cols["frame"] > 8))[0])
-    assert (cols["status"][8:back] == "lost").all() and back >= 16
+    assert (cols["status"][8:back] == "lost").all() and back >= AWAY.stop  # no "face" while it is away
     summary = json.loads((out / "away.json").read_text())
     assert summary["smoothing"]["filter"] == "one_euro"  # on by default
     assert summary["outputs"]["report"] == str(out / "report.html")

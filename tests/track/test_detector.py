@@ -45,19 +45,71 @@ def test_unturn_inverts_the_turn():
     assert np.abs(unturn(pts @ M[:, :2].T + M[:, 2], 30.0, (80, 100)) - pts).max() < 1e-9
 
 
-@pytest.mark.parametrize("width,expected_widths", [(640, (320, 640, 320, 320)), (320, (320, 320, 320))])
+@pytest.mark.parametrize("width,expected_widths", [(640, (320, 640, 320, 320)), (320, (320, 640, 320, 320))])
 def test_find_searches_upright_then_wider_then_turned(width, expected_widths):
-    """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at twice it (only
-    for frames wider than DETECT_WIDTH: small faces), then turned by +30 and -30 degrees."""
+    """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it
+    after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), then turned
+    by +30 and -30 degrees."""
     from aamtrack import detector as det_module
 
     calls = []
 
     class Recording(HaarDetector):
-        def detect_all(self, gray, angle=0.0, width=0):
-            calls.append((angle, width))
-            return super().detect_all(gray, angle, width)
+        def detect_all(self, gray, angle=0.0, width=0, **kw):
+            calls.append((angle, width, kw.get("clipped", False)))
+            return super().detect_all(gray, angle, width, **kw)
 
     assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
-    assert [w for _, w in calls] == [w * det_module.DETECT_WIDTH // 320 for w in expected_widths]
-    assert [a for a, _ in calls] == [0.0] * (len(calls) - 2) + [30.0, -30.0]
+    assert [w for _, w, _ in calls] == [w * det_module.DETECT_WIDTH // 320 for w in expected_widths]
+    assert [a for a, _, _ in calls] == [0.0] * (len(calls) - 2) + [30.0, -30.0]
+    assert [c for _, _, c in calls] == [False, True, False, False]
+
+
+def test_clipped_equalisation_keeps_a_small_patch_contrast():
+    """A 40x40 patch of grey levels 100..155 in a 320x240 frame of grey 128: plain equalisation squeezes the
+    patch's levels below 128 into the few darkest outputs (the background takes the rest); clipped, the patch
+    keeps a spread of output levels on both sides of the background. Output is monotone in the input."""
+    from aamtrack.detector import equalize_clipped
+
+    rng = np.random.default_rng(7)
+    img = np.full((240, 320), 128, np.uint8)
+    img[100:140, 140:180] = rng.integers(100, 156, (40, 40))
+    patch = (slice(100, 140), slice(140, 180))
+    low = img[patch] < 128
+    plain, clipped = cv2.equalizeHist(img), equalize_clipped(img)
+    assert np.ptp(plain[patch][low]) <= 10  # the premise: plain squeezes the patch's dark half into a few levels
+    assert np.ptp(clipped[patch][low]) >= 60  # clipped: the dark half spreads over a quarter of the range or more
+    order = np.argsort(img.ravel(), kind="stable")
+    assert np.all(np.diff(clipped.ravel()[order].astype(int)) >= 0)  # monotone: no level overtakes another
+    assert clipped.min() == 0 and clipped.max() == 255
+
+
+def test_clipped_equalisation_of_a_flat_or_uniform_image():
+    from aamtrack.detector import equalize_clipped
+
+    flat = np.full((30, 40), 77, np.uint8)
+    assert np.array_equal(equalize_clipped(flat), flat)  # one level: unchanged
+    ramp = np.tile(np.arange(256, dtype=np.uint8), (4, 1))
+    assert np.abs(equalize_clipped(ramp).astype(int) - ramp).max() <= 1  # an even histogram is already equal
+
+
+def test_small_face_in_a_flat_frame_is_found():
+    """The synthetic face shrunk to about 31 px between its outer eye corners, centred in a 640x480 frame of
+    flat dark grey (its own background level, as a stage around a small face): plain equalisation hides it from
+    Haar at both widths; ``find`` returns an upright box on it from the clipped search."""
+    ref = synth.face_layout()
+    pts = synth.project2d(ref, 0.0, 110.0, 160.0, 120.0)
+    img = synth.render(ref, pts, (320, 240))
+    k = 0.5
+    small = cv2.resize(img, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    frame = np.full((480, 640), 60, np.uint8)
+    y0, x0 = (480 - small.shape[0]) // 2, (640 - small.shape[1]) // 2
+    frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
+    small_pts = (pts + 0.5) * k - 0.5 + [x0, y0]
+    assert 28 < np.linalg.norm(small_pts[45] - small_pts[36]) < 34  # the size the test is about
+    det = HaarDetector()
+    assert len(det.detect_all(frame)) == 0 and len(det.detect_all(frame, 0.0, 640)) == 0  # the premise
+    found = det.find(frame)
+    assert found is not None and found[1] == 0.0
+    x, y, w, h = found[0]
+    assert abs(x + w / 2 - small_pts[:, 0].mean()) < 0.25 * w and abs(y + h / 2 - small_pts[:, 1].mean()) < 0.3 * h

@@ -206,8 +206,8 @@ def _turned_detector(tracker, boxes_at):
     from aamtrack.detector import HaarDetector
 
     class Steered(HaarDetector):
-        def detect_all(self, gray, angle=0.0, width=0):
-            return boxes_at(angle, super().detect_all(gray, angle, width))
+        def detect_all(self, gray, angle=0.0, width=0, **kw):
+            return boxes_at(angle, super().detect_all(gray, angle, width, **kw))
 
     tracker.detector = Steered()
     return tracker

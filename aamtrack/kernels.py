@@ -144,25 +144,13 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
     return out
 
 
-def landmark_features(image, scale: float, shift: float, pts, ref, half: float, basis_mean, basis, *, cells: int,
-                      cell: int, bins: int, floor: float, feat) -> np.ndarray:
-    """(L, d) float32: the descriptors of pts (L, 2) float64 on a patch of half side ``half`` (reference units),
-    projected on one stage's basis (``aamtrack._kernels.patches._landmark_features``); feat scratch as in
-    ``landmark_cascade``."""
-    return _p._landmark_features(_in(image, F32, 2, "image"), float(scale), float(shift), _in(pts, F64, 2, "pts"),
-                                 _in(ref, F64, 2, "ref"), float(half), _in(basis_mean, F32, 1, "basis_mean"),
-                                 _in(basis, F32, 2, "basis"), int(cells), int(cell), int(bins), float(floor),
-                                 _out(feat, F32, 2, "feat"))
-
-
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, regressors, biases, *,
                      cells: int, cell: int, bins: int, floor: float, feat) -> np.ndarray:
     """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
     float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``; feat (L, cells * cells *
-    bins) float32 scratch."""
-    _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
+    bins) float32 scratch. Returns (L, d) float32: the last stage's projected descriptors."""
+    return _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
                          _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
                          _in(basis, F32, 3, "basis"), _in(regressors, F32, 3, "regressors"),
                          _in(biases, F64, 2, "biases"), int(cells), int(cell), int(bins), float(floor),
                          _out(feat, F32, 2, "feat"))
-    return pts

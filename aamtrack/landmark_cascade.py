@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import landmark_cascade, landmark_descriptors, landmark_features
+from .kernels import landmark_cascade, landmark_descriptors
 from .mesh.landmarks import similarity_fit
 
 
@@ -97,41 +97,35 @@ class LandmarkCascade:
 
     def apply(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> np.ndarray:
         """(68, 2) the points pts (68, 2) (frame pixels) moved by stages ``first``.. (all by default), on
-        ``image`` (the grey frame resampled by ``scale``), in one compiled call (``kernels.landmark_cascade``;
-        ``apply_slow`` is the same in numpy steps)."""
+        ``image`` (the grey frame resampled by ``scale``); ``run``'s points."""
+        return self.run(image, scale, pts, first)[0]
+
+    def run(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``apply`` in one compiled call (``kernels.landmark_cascade``; ``run_slow`` is the same in numpy steps).
+        Returns (points (68, 2), z (68 d,) float32): z the last stage's projected descriptors, read at the points
+        just before its update (within about 0.01 eye distances of the final ones), what the landmark validator
+        weighs (``model.Validator``): what the face looks like around each point, at no extra cost."""
         sp = self.spec
         x = np.array(pts, dtype=np.float64)
         k = slice(first, None)
-        landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
-                         self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells,
-                         cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
-                         feat=np.empty((len(x), sp.size), np.float32))
-        return x
-
-    def validator_features(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
-        """(68 d,) float32: the last stage's projected descriptors read at pts (68, 2) (frame pixels) on
-        ``image`` (the grey frame resampled by ``scale``), what the landmark validator weighs
-        (``model.Validator``): what the face looks like around each final point. One compiled call
-        (``kernels.landmark_features``); ``validator_features_slow`` is the same in numpy steps."""
-        sp = self.spec
-        return landmark_features(image, scale, 0.5 * scale - 0.5, np.ascontiguousarray(pts, dtype=np.float64),
-                                 self.ref, self.halves[-1], self.basis_mean[-1], self.basis[-1], cells=sp.cells,
-                                 cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
-                                 feat=np.empty((len(pts), sp.size), np.float32)).reshape(-1)
-
-    def validator_features_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
-        """``validator_features`` in numpy steps (what it is tested against)."""
-        M, _ = similarity_to(self.ref, pts)
-        phi = descriptors(self.spec, image, scale, np.ascontiguousarray(pts, dtype=np.float64), self.halves[-1], M)
-        return project_descriptors(phi, self.basis_mean[-1], self.basis[-1])
+        z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
+                             self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells,
+                             cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
+                             feat=np.empty((len(x), sp.size), np.float32))
+        return x, z.reshape(-1)
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
-        """``apply`` stage by stage in numpy (what training does; the reference ``apply`` is tested against)."""
+        """``apply`` stage by stage in numpy (what training does; the compiled ``apply`` is tested against it)."""
+        return self.run_slow(image, scale, pts)[0]
+
+    def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``run`` (all stages) stage by stage in numpy."""
         x = np.array(pts, dtype=np.float64)
         buf = np.empty((len(x), self.spec.size), np.float32)
+        z = None
         for k, half in enumerate(self.halves):
             M, _ = similarity_to(self.ref, x)
             z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf), self.basis_mean[k],
                                     self.basis[k])
             x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M
-        return x
+        return x, z.reshape(-1)

@@ -30,7 +30,8 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 4  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator
+FORMAT_VERSION = 5  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+# the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -76,7 +77,7 @@ class Couple:
 class Validator:
     """Logistic fit validator: confidence = 1 / (1 + exp(-(w . (x - mean) / scale + d . z + bias))) over the fit
     statistics x named ``names`` (``STAT_NAMES``) and, for the landmark validator, the landmark
-    cascade's descriptors z at the final points (``LandmarkCascade.validator_features``) weighted by
+    cascade's last-stage descriptors z (``LandmarkCascade.run``) weighted by
     ``descriptor_weights`` d (float32, None for a statistics-only validator)."""
 
     names: tuple

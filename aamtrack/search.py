@@ -121,7 +121,7 @@ class Searcher:
         read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
         search passes the one it used, whose level is made already); the fit itself when the model has none.
         The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
-        statistics and the descriptors at the final points) when the model has one. ``last`` > 0 runs only the
+        statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one. ``last`` > 0 runs only the
         cascade's last ``last`` stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
         lc = self.model.landmark_cascade
         if lc is None:
@@ -130,9 +130,9 @@ class Searcher:
             r = self.factors(res.p)[-1]
         first = max(0, lc.n_stages - last) if last > 0 else 0
         img = levels.resampled(r)
-        pts = lc.apply(img, r, res.landmarks, first)
+        pts, z = lc.run(img, r, res.landmarks, first)
         lv = self.model.landmark_validator
-        conf = res.confidence if lv is None else lv(res.stats, lc.validator_features(img, r, pts))
+        conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf)
 
     def project(self, p: np.ndarray) -> np.ndarray:

@@ -198,10 +198,13 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
     2 halves[k] / (cells * cell + 1) reference units, each point's descriptor projected on the stage's basis
-    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + b[k]) @ M per point."""
+    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + b[k]) @ M per point. Returns the last
+    stage's z (what the landmark validator weighs: the face around each point just before the last, smallest
+    update)."""
     L = pts.shape[0]
     side = cells * cell
     n2 = _squared_norm(ref)
+    z = np.zeros((L, basis.shape[2]), np.float32)
     for k in range(halves.shape[0]):
         a, c = _similarity(pts, ref, n2)
         step = 2.0 * halves[k] / (side + 1)
@@ -214,13 +217,4 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
             uy = d[2 * li + 1] + b[k, 2 * li + 1]
             pts[li, 0] += ux * a - uy * c
             pts[li, 1] += ux * c + uy * a
-
-
-@numba.njit(**NJIT)
-def _landmark_features(img, scale, shift, pts, ref, half, basis_mean, basis, cells, cell, bins, floor, feat):
-    """(L, d) float32: the descriptors of pts (L, 2) (patch half side ``half`` reference units, in the frame of
-    the similarity taking ref to pts) projected on one stage's basis, as ``_landmark_cascade`` reads them."""
-    a, c = _similarity(pts, ref, _squared_norm(ref))
-    step = 2.0 * half / (cells * cell + 1)
-    _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor, feat)
-    return np.dot(feat - basis_mean, basis)
+    return z

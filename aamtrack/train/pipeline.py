@@ -463,13 +463,14 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
 
     def add(levels, p0, truth):
         r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
-        res = searcher.fit(levels, p0)
+        res = searcher.fit(levels, p0, landmarks=False)
+        pts, z = lc.run(levels.resampled(r), r, res.landmarks)  # as ``refine_landmarks`` runs it
         if truth is not None:
-            e = float(nme(res.landmarks, truth))
+            e = float(nme(pts, truth))
             if 0.06 <= e <= 0.10:  # neither clearly on the face nor clearly off it
                 return
         S.append(res.stats)
-        Z.append(lc.validator_features(levels.resampled(r), r, res.landmarks))
+        Z.append(z)
         y.append(float(truth is not None and e < 0.06))
 
     def start(box, roll=0.0):

@@ -55,12 +55,11 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
     after = nme(np.array([cascade.apply(g, 1.0, s) for g, s in zip(gray[test], starts)]), truth[test])
     assert before.mean() > 0.08  # the starts really are off
     assert after.mean() < 0.45 * before.mean()  # and the cascade takes them more than half the way
-    slow = np.array([cascade.apply_slow(g, 1.0, s) for g, s in zip(gray[test], starts)])
-    fast = np.array([cascade.apply(g, 1.0, s) for g, s in zip(gray[test], starts)])
-    assert np.abs(fast - slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
-    for g, s in zip(gray[test], starts):  # the landmark validator's features: compiled against numpy steps
-        z, z_slow = cascade.validator_features(g, 1.0, s), cascade.validator_features_slow(g, 1.0, s)
+    for g, s in zip(gray[test], starts):  # compiled against numpy steps, points and the validator's features
+        (x, z), (x_slow, z_slow) = cascade.run(g, 1.0, s), cascade.run_slow(g, 1.0, s)
+        assert np.abs(x - x_slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
         assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
+        assert np.array_equal(cascade.apply(g, 1.0, s), x)
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():

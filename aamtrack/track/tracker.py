@@ -17,6 +17,7 @@ import numpy as np
 
 from ..detector import HaarDetector, guess_points, unturn
 from ..imaging import to_gray32
+from ..mesh.landmarks import similarity_fit
 from ..mesh.shape_model import N_POSE, initial_pose
 from ..model import Model
 from ..search import Searcher
@@ -49,12 +50,20 @@ class TrackerConfig:
     turned_retry_below: a detection found upright whose best fit is less confident than this also tries the
     detector's turned frames (``Tracker.detect_and_fit``); 0 never does.
     landmark_stages_tracked: on a tracked frame, only the last this many stages of the landmark cascade
-    (``aamtrack.landmark_cascade``) run, from the search's points (0: all of them); detections run all. The
-    search from the previous frame leaves its points closer than a detection does, and the later stages (smaller
-    patches) do most of the work there: cap12, 3D, raw NME against the dlib reference, search alone 0.0293, last
-    1 stage 0.0289, last 2 0.0241, all 4 0.0232 (last 3: 0.0230 with a model trained before), at about half the
-    cascade's time for 2. (Starting the last
-    stages from the previous frame's correction instead drifted: 0.60.)
+    (``aamtrack.landmark_cascade``) run, from the search's points (0, the default: all of them); detections run
+    all. Two stages (the default before 2026-11-22) were nearly as good on cap12 (raw NME 0.0241 against 0.0232 for
+    all four) but not on faces unlike the training set's: the first stage's large patches are what brings the search's points
+    back, and the search from the previous frame leaves them about as far off as a detection's. All four cost
+    about 0.17 ms a frame more (each stage about 0.09 ms on one core; descriptors 0.06, regression 0.02).
+    realign: a tracked frame's search starts from the previous fit moved in the image plane (roll, scale,
+    translation) onto the previous frame's final landmarks (``Tracker.realign``) instead of from the previous
+    search alone. The update cascades are learned for one pass from perturbed starts; run again and again from
+    their own output they walk off on faces they do not fit well. Measured with the 3D model (2026-11-22): 40
+    helen_test photos (held out) as 60-frame shots with a slow pan and zoom, share of frames within NME 0.08
+    77% -> 86% and mean over them 0.057 -> 0.043 (2D: 84% -> 88%, 0.044 -> 0.040) for realign with all four
+    landmark stages against neither; without realign, all four stages alone: 0.055 on the first 10 shots where
+    realign gets 0.050. cap12 (against the dlib reference, ``benchmarks/video_accuracy.py``) 3D 0.0258 ->
+    0.0248, 2D 0.0362 -> 0.0260.
     rescue: when the detection's fit is still not accepted (confidence below ``min_confidence``), the search
     also runs from the box moved by each (x shift, y shift, scale) (shifts in box widths, about the box's
     centre), all on one crop, and the most confident fit is kept (``Tracker.rescue``). Haar's box can sit on
@@ -75,7 +84,8 @@ class TrackerConfig:
     starts: tuple = ((1.0, 0.0, 0.0), (0.9, 0.0, 0.0), (1.1, 0.0, 0.0), (1.0, -0.06, 0.0), (1.0, 0.06, 0.0),
                      (1.0, 0.0, -0.21), (1.0, 0.0, 0.21))
     turned_retry_below: float = 0.9
-    landmark_stages_tracked: int = 2
+    landmark_stages_tracked: int = 0
+    realign: bool = True
     rescue: tuple = ((0.0, 0.3, 1.0), (0.0, -0.3, 1.0), (0.3, 0.0, 1.0), (-0.3, 0.0, 1.0), (0.0, 0.3, 1.25),
                      (0.0, -0.3, 1.25), (0.3, 0.0, 1.25), (-0.3, 0.0, 1.25))
 
@@ -236,6 +246,22 @@ class Tracker:
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
         return np.r_[q, sigma]
 
+    def realign(self, res: FitResult) -> np.ndarray:
+        """res.p with its in-plane pose (roll, scale, translation) moved by the least-squares similarity that takes
+        the search's own 68 points (``landmark_map`` @ its mesh) onto the fit's final ones (the landmark cascade's):
+        where the next frame's search starts. Searching from the search's own result frame after frame iterates a
+        learned update that was trained for one pass from perturbed starts, and on faces unlike the training set's
+        it walks off (see ``TrackerConfig.realign``); the cascade's points are the better estimate of where the face
+        is. With s R, t the similarity (row vectors, x -> s x R + t), the projection u = k (R3 X)_x + Tx,
+        v = -k (R3 X)_y + Ty becomes the model's own with k s, roll rz - atan2(R01, R00) and T -> s T R + t."""
+        p = res.p.copy()
+        src = self.model.shape.landmark_map @ res.vertices
+        s, R, t = similarity_fit(src, res.landmarks)
+        p[2] -= np.arctan2(R[0, 1], R[0, 0])
+        p[3] *= s
+        p[4], p[5] = s * (p[4:6] @ R) + t
+        return p
+
     def loss_reason(self, res: FitResult, shape: tuple, p_before: np.ndarray | None) -> str:
         """Why a fit is not accepted ("" when it is): the validator's confidence, the landmarks in the frame,
         and, from the previous frame's ``p_before``, a turn or rescale no head makes in one frame."""
@@ -317,7 +343,7 @@ class Tracker:
                     if len(sigma_samples) >= cfg.sigma_frames:
                         shape_params = np.median(sigma_samples, axis=0)
                 p_prev = p if status == "tracked" else None
-                p = res.p
+                p = self.realign(res) if cfg.realign else res.p
                 yield self._result(frame, status, res, timings)
             else:
                 p = p_prev = None

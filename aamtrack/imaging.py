@@ -81,6 +81,25 @@ def to_gray32(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(image, dtype=np.float32)
 
 
+THUMBNAIL_SIZE = (32, 24)
+
+
+def thumbnail(image: np.ndarray) -> np.ndarray:
+    """(24, 32) float32 grey thumbnail of a BGR/grey frame, zero mean and unit norm (all zeros for a uniform
+    frame), so that the sum of two thumbnails' product is their correlation (``Tracker.track``'s shot-change
+    test). The frame is subsampled to about 64 px on its short side (a strided view), then area-resized: about
+    0.05 ms at any frame size on one core; area resizing of the whole frame would take 0.2 ms at 640x480."""
+    H, W = image.shape[:2]
+    step = max(1, min(H, W) // 64)
+    small = cv2.resize(np.ascontiguousarray(image[::step, ::step]), THUMBNAIL_SIZE, interpolation=cv2.INTER_AREA)
+    if small.ndim == 3:
+        small = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
+    t = small.astype(np.float32)
+    t -= t.mean()
+    norm = float(np.linalg.norm(t))
+    return t / norm if norm > 1e-3 else np.zeros_like(t)
+
+
 def level_factor(face_px: float, couple_face_px: float) -> float:
     """r = min(1, couple_face_px / face_px): the resampling that makes the face ``couple_face_px`` wide."""
     if not np.isfinite(face_px) or face_px <= couple_face_px:

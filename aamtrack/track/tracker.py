@@ -16,7 +16,8 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ..detector import HaarDetector, guess_points, unturn
-from ..imaging import to_gray32
+from ..imaging import thumbnail, to_gray32
+from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import similarity_fit
 from ..mesh.shape_model import N_POSE, initial_pose
 from ..model import Model
@@ -24,6 +25,8 @@ from ..search import Searcher
 from ..result import FitResult, FrameResult
 
 log = logging.getLogger(__name__)
+
+TRACKED_STARTS = ("auto", "landmarks", "similarity", "search")
 
 
 @dataclass(frozen=True)
@@ -38,8 +41,9 @@ class TrackerConfig:
     predict: constant-velocity prediction of the pose (damped by ``predict_damping``).
     sigma_frames: 3D models search the person's shape units with the pose in this many good frames (fits of
     confidence at least ``sigma_min_confidence``, so a poor fit of the first frames cannot set the person's
-    shape), then hold the median of those estimates (0: search them in every frame). One person per video is
-    assumed: sigma is kept through losses and re-detections.
+    shape), then hold the median of those estimates (0: search them in every frame). One person per shot is
+    assumed: sigma is kept through losses and re-detections, and estimated anew after a shot change
+    (``sigma_per_shot``).
     skip_coarse: frames tracked from the previous frame skip this many of the coarsest couples (they give
     the capture range a detection needs; frame-to-frame motion is smaller).
     refine_detection: after a detection, search once more from the chosen fit, as a tracked frame would
@@ -51,19 +55,31 @@ class TrackerConfig:
     detector's turned frames (``Tracker.detect_and_fit``); 0 never does.
     landmark_stages_tracked: on a tracked frame, only the last this many stages of the landmark cascade
     (``aamtrack.landmark_cascade``) run, from the search's points (0, the default: all of them); detections run
-    all. Two stages (the default before 2026-11-22) were nearly as good on cap12 (raw NME 0.0241 against 0.0232 for
-    all four) but not on faces unlike the training set's: the first stage's large patches are what brings the search's points
-    back, and the search from the previous frame leaves them about as far off as a detection's. All four cost
-    about 0.17 ms a frame more (each stage about 0.09 ms on one core; descriptors 0.06, regression 0.02).
-    realign: a tracked frame's search starts from the previous fit moved in the image plane (roll, scale,
-    translation) onto the previous frame's final landmarks (``Tracker.realign``) instead of from the previous
-    search alone. The update cascades are learned for one pass from perturbed starts; run again and again from
-    their own output they walk off on faces they do not fit well. Measured with the 3D model (2026-11-22): 40
-    helen_test photos (held out) as 60-frame shots with a slow pan and zoom, share of frames within NME 0.08
-    77% -> 86% and mean over them 0.057 -> 0.043 (2D: 84% -> 88%, 0.044 -> 0.040) for realign with all four
-    landmark stages against neither; without realign, all four stages alone: 0.055 on the first 10 shots where
-    realign gets 0.050. cap12 (against the dlib reference, ``benchmarks/video_accuracy.py``) 3D 0.0258 ->
-    0.0248, 2D 0.0362 -> 0.0260.
+    all. Two stages (the default before 2026-11-22) were nearly as good on cap12 (raw NME 0.0241 against 0.0232
+    for all four) but not on faces unlike the training set's: the first stage's large patches are what brings
+    the search's points back, and a search from the previous frame leaves them about as far off as a detection's.
+    All four cost about 0.17 ms a frame more (each stage about 0.09 ms on one core; descriptors 0.06, regression
+    0.02).
+    tracked_start: where a tracked frame's search starts. "landmarks": the previous fit moved by one Gauss-Newton
+    step of the landmark fit (pose and coefficients, the person's shape held) onto the previous frame's final
+    landmarks (``Tracker.landmark_start``); "similarity": the previous fit moved in the image plane only (roll,
+    scale, translation; ``Tracker.realign``); "search": the previous search's own result (before 2026-11-22);
+    "auto" (default): "landmarks" for 3D models, "similarity" for 2D ones. The update cascades are learned for
+    one pass from perturbed starts; run again and again from their own output they walk off faces they do not
+    fit well, while the landmark cascade's points are the better estimate of where the face is. Measured with
+    ``benchmarks/still_shots.py`` (held-out helen_test photos played as shots; figures in benchmarks/README.md):
+    3D "landmarks" ahead of "similarity" (and of "search" by far), which leaves yaw, pitch and the animation
+    units to the search; 2D "similarity" ahead of "landmarks" (which moves only the 2D model's PCA modes: cap12
+    0.0260 -> 0.0289 with it).
+    cut_below: a frame whose thumbnail (``imaging.thumbnail``, 32x24 grey) correlates with the previous frame's
+    below this is a new shot: the track restarts with a detection rather than searching from a face that is no
+    longer there (0 never does). Consecutive frames of cap12 correlate at 0.90 or more (0.98 at the 1st
+    percentile), the cuts between ``still_shots.py``'s photos at 0.70 at most (median 0.08), hard cuts within
+    cap12 (light changes, black) at 0.49 at most; a uniform frame (a thumbnail of zeros) counts as a change too.
+    About 0.06 ms a frame.
+    sigma_per_shot: the person's shape (``sigma_frames``) is estimated anew after a shot change: a cut may show
+    another person, and a held sigma that is not theirs costs more than the estimate's first frames
+    (``still_shots.py``, each shot another person: see benchmarks/README.md).
     rescue: when the detection's fit is still not accepted (confidence below ``min_confidence``), the search
     also runs from the box moved by each (x shift, y shift, scale) (shifts in box widths, about the box's
     centre), all on one crop, and the most confident fit is kept (``Tracker.rescue``). Haar's box can sit on
@@ -85,9 +101,15 @@ class TrackerConfig:
                      (1.0, 0.0, -0.21), (1.0, 0.0, 0.21))
     turned_retry_below: float = 0.9
     landmark_stages_tracked: int = 0
-    realign: bool = True
+    tracked_start: str = "auto"
+    cut_below: float = 0.6
+    sigma_per_shot: bool = True
     rescue: tuple = ((0.0, 0.3, 1.0), (0.0, -0.3, 1.0), (0.3, 0.0, 1.0), (-0.3, 0.0, 1.0), (0.0, 0.3, 1.25),
                      (0.0, -0.3, 1.25), (0.3, 0.0, 1.25), (-0.3, 0.0, 1.25))
+
+    def __post_init__(self):
+        if self.tracked_start not in TRACKED_STARTS:
+            raise ValueError(f"tracked_start {self.tracked_start!r}: one of {', '.join(TRACKED_STARTS)}")
 
 
 class Tracker:
@@ -100,6 +122,7 @@ class Tracker:
         self.searcher = Searcher(model)
         self.detector = detector or HaarDetector()
         self.mm_per_unit = model.shape.mm_per_unit()
+        self._landmark_fitter = LandmarkFitter(model.shape)
         # the ROI needs to cover only what the texture maps sample (Candide's scalp is not in them)
         self.roi_vertices = np.unique(np.concatenate([t.frame.pix_vid.ravel() for t in model.textures]))
 
@@ -246,12 +269,28 @@ class Tracker:
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
         return np.r_[q, sigma]
 
+    def tracked_start(self, res: FitResult) -> np.ndarray:
+        """Where the next frame's search starts after the accepted fit res (``TrackerConfig.tracked_start``)."""
+        how = self.config.tracked_start
+        if how == "auto":
+            how = "landmarks" if self.model.shape.kind == "3d" else "similarity"
+        if how == "landmarks":
+            return self.landmark_start(res)
+        if how == "similarity":
+            return self.realign(res)
+        return res.p
+
+    def landmark_start(self, res: FitResult) -> np.ndarray:
+        """res.p moved by one Gauss-Newton step of the landmark fit (``mesh.landmark_fit.LandmarkFitter.refit``:
+        pose and coefficients, the shape units held) onto the fit's final landmarks."""
+        return self._landmark_fitter.refit(res.p, res.landmarks)
+
     def realign(self, res: FitResult) -> np.ndarray:
         """res.p with its in-plane pose (roll, scale, translation) moved by the least-squares similarity that takes
         the search's own 68 points (``landmark_map`` @ its mesh) onto the fit's final ones (the landmark cascade's):
         where the next frame's search starts. Searching from the search's own result frame after frame iterates a
         learned update that was trained for one pass from perturbed starts, and on faces unlike the training set's
-        it walks off (see ``TrackerConfig.realign``); the cascade's points are the better estimate of where the face
+        it walks off (see ``TrackerConfig.tracked_start``); the cascade's points are the better estimate of where the face
         is. With s R, t the similarity (row vectors, x -> s x R + t), the projection u = k (R3 X)_x + Tx,
         v = -k (R3 X)_y + Ty becomes the model's own with k s, roll rz - atan2(R01, R00) and T -> s T R + t."""
         p = res.p.copy()
@@ -310,6 +349,7 @@ class Tracker:
         shape_params = None  # the person's held shape units (3D), once estimated
         sigma_samples = []
         estimate = self.model.shape.n_shape > 0 and cfg.sigma_frames > 0
+        thumb = None      # the previous frame's (shot changes)
         for frame in frames:
             if getattr(frame, "dropped", False):
                 yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped")
@@ -320,6 +360,12 @@ class Tracker:
                 continue
             timings = {}
             image = frame.image
+            if cfg.cut_below > 0:
+                before, thumb = thumb, thumbnail(image)
+                if before is not None and float((before * thumb).sum()) < cfg.cut_below:  # a new shot
+                    p = p_prev = None
+                    if cfg.sigma_per_shot:
+                        shape_params, sigma_samples = None, []
             if p is None:
                 res, timings = self.detect_and_fit(image, shape_params)
                 if res is None:
@@ -343,7 +389,7 @@ class Tracker:
                     if len(sigma_samples) >= cfg.sigma_frames:
                         shape_params = np.median(sigma_samples, axis=0)
                 p_prev = p if status == "tracked" else None
-                p = self.realign(res) if cfg.realign else res.p
+                p = self.tracked_start(res)
                 yield self._result(frame, status, res, timings)
             else:
                 p = p_prev = None

@@ -12,6 +12,10 @@ import synth3d
 OBSERVABLE = ("eye_separation_distance", "mouth_width", "eyes_width")  # units a frontal face shows
 
 
+class _NONE:
+    confidence = 0.0
+
+
 def test_person_search_moves_towards_the_true_shape(synth_model3d):
     model3d, candide = synth_model3d
     sm = model3d.shape
@@ -36,3 +40,39 @@ def test_person_search_moves_towards_the_true_shape(synth_model3d):
     # the searched sigma explains part of the shape the mean person misses; a search that ignored or broke sigma
     # would make the mean gain zero or negative
     assert np.mean(gains) > 0.05 * np.mean(befores)
+
+
+def test_the_person_shape_is_estimated_anew_after_a_cut(synth_model3d):
+    """``TrackerConfig.sigma_per_shot``: after a shot change (here two different synthetic people at different
+    places in the frame) the held sigma of the first person is dropped and the second person's is estimated from
+    their own frames; with it off the first one's is kept."""
+    from aamtrack.imaging import thumbnail
+    from aamtrack.track.replay import ReplayFrame
+    from aamtrack.track.tracker import Tracker, TrackerConfig
+
+    model3d, candide = synth_model3d
+    rng = np.random.default_rng(SEED + 7)
+    faces, _, _, _ = synth3d.posed_faces(candide, 8, rng, yaw_sd=0.0, pitch_sd=0.0, observable=OBSERVABLE)
+    tracker = Tracker(model3d)
+    images = [f for f in faces if (tracker.detect_and_fit(f)[0] or _NONE).confidence >= 0.5][:2]  # found ones
+    assert len(images) == 2
+    images[1] = np.roll(images[1], 40, axis=1)  # the second person 40 px to the right (the renders' background
+    # is about flat, so the wrapped strip is background): a change of shot, not a motion
+    assert (tracker.detect_and_fit(images[1])[0] or _NONE).confidence >= 0.5
+    corr = float((thumbnail(images[0]) * thumbnail(images[1])).sum())
+    assert corr < TrackerConfig().cut_below  # the premise: a cut under the rule
+    frames = [images[0]] * 6 + [images[1]] * 6
+    runs = {}
+    for per_shot in (True, False):
+        cfg = TrackerConfig(sigma_frames=3, sigma_per_shot=per_shot)
+        runs[per_shot] = list(Tracker(model3d, config=cfg).track(ReplayFrame(i, i / 25.0, f)
+                                                                  for i, f in enumerate(frames)))
+    on, off = runs[True], runs[False]
+    assert all(r.success for r in on + off)
+    assert on[6].status == "detected" and off[6].status == "detected"  # the cut restarts the track either way
+    held_a = on[5].shape_params
+    assert np.array_equal(off[11].shape_params, held_a)  # off: the first person's sigma goes on
+    shift = np.abs(on[11].shape_params - held_a).max()
+    print(f"sigma after the cut moved by {shift:.3f} (max over units)")
+    assert shift > 0.01  # on: the second person's own estimate
+    assert np.array_equal(on[10].shape_params, on[11].shape_params)  # and held again once estimated

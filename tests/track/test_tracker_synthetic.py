@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from aamtrack.io.frames import open_frames
+from aamtrack.result import FitResult
 from aamtrack.track.replay import realtime
 from aamtrack.track.tracker import Tracker, TrackerConfig
 import synth
@@ -31,7 +32,7 @@ def test_tracks_a_written_video_to_a_pixel(moving_video, synth_model):
 
 
 def test_tracked_frames_run_the_last_landmark_stages_only(moving_video, synth_model):
-    """``landmark_stages_tracked``: without ``realign``, the search (pose, mesh) is the same whichever stages of the
+    """``landmark_stages_tracked``: with ``tracked_start="search"``, the search (pose, mesh) is the same whichever stages of the
     landmark cascade run on tracked frames; the detection frame runs them all either way; the points stay within a pixel. (The
     confidence is the landmark validator's, read at the final points, so it may differ a little.)"""
     from aamtrack.track.tracker import TrackerConfig
@@ -40,8 +41,8 @@ def test_tracked_frames_run_the_last_landmark_stages_only(moving_video, synth_mo
     runs = {}
     for last in (0, 1):
         with open_frames(path) as src:
-            # realign off: a tracked frame's search then starts from the previous search alone, whatever the stages
-            cfg = TrackerConfig(landmark_stages_tracked=last, realign=False)
+            # a tracked frame's search then starts from the previous search alone, whatever the stages
+            cfg = TrackerConfig(landmark_stages_tracked=last, tracked_start="search")
             runs[last] = list(Tracker(synth_model, config=cfg).track(src))
     a, b = runs[0], runs[1]
     assert all(np.array_equal(x.vertices, y.vertices) for x, y in zip(a, b))
@@ -393,8 +394,8 @@ def test_realign_moves_the_search_points_onto_the_final_ones(kind, synth_model, 
 @pytest.mark.shared_data
 def test_tracking_a_still_face_keeps_the_detection_s_accuracy():
     """Tracked frames of unseen faces held still (a slow pan and zoom of helen_test photos, about 90 px between the
-    outer eye corners) stay near the accuracy of the detection's fit with ``realign`` and every landmark stage
-    (the defaults). Searching from the previous search alone with the last two stages walked off: measured over
+    outer eye corners) stay near the accuracy of the detection's fit with the defaults (the search started from
+    the previous frame's final landmarks, every landmark stage). Searching from the previous search alone with the last two stages walked off: measured over
     40 such shots (/tmp study, 2026-11-22), share of frames within NME 0.08 77% -> 86%, mean over them 0.057 ->
     0.043."""
     from dataclasses import replace as dc_replace
@@ -409,7 +410,7 @@ def test_tracking_a_still_face_keeps_the_detection_s_accuracy():
 
     model = load_model(default_model_path("3d"))
     new = Tracker(model)
-    old = Tracker(model, config=dc_replace(new.config, realign=False, landmark_stages_tracked=2))
+    old = Tracker(model, config=dc_replace(new.config, tracked_start="search", landmark_stages_tracked=2))
     err = {"new": [], "old": [], "detected": []}
     shots = 0
     for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[::7]:
@@ -440,3 +441,91 @@ def test_tracking_a_still_face_keeps_the_detection_s_accuracy():
     assert shots == 8
     assert e_new < det + 0.01  # NME: tracked frames keep near the detection's accuracy
     assert e_new < e_old  # and better than tracking from the previous search alone
+
+
+@pytest.mark.parametrize("kind", ["2d", "3d"])
+def test_landmark_start_fits_the_final_points(kind, synth_model, synth_model3d):
+    """``Tracker.landmark_start``: one Gauss-Newton step of the landmark fit from a search vector whose pose and
+    coefficients are off takes the model's 68 points onto the final ones it is given (made by a known vector),
+    the shape units held."""
+    model = synth_model if kind == "2d" else synth_model3d[0]
+    tracker = Tracker(model)
+    sm = model.shape
+    truth = tracker.initial_p((60.0, 40.0, 150.0, 150.0))
+    rng = np.random.default_rng(11)
+    lo, hi = sm.bounds()
+    n_q = sm.n_q
+    truth[6:n_q] = np.clip(0.3 * rng.normal(size=n_q - 6) * sm.spreads()[6:n_q], lo[6:], hi[6:])
+    if kind == "3d":
+        truth[0], truth[1] = 0.1, -0.2
+        truth[n_q:] = 0.5 * sm.shape_sd * rng.normal(size=len(truth) - n_q)
+    final = sm.landmark_map @ tracker.searcher.project(truth)
+    off = truth.copy()
+    off[2] += 0.05
+    off[3] *= 1.05
+    off[4:6] += 3.0
+    if kind == "3d":
+        off[0] -= 0.08
+        off[1] += 0.1
+    off[6:n_q] = np.clip(off[6:n_q] + 0.1 * sm.spreads()[6:n_q], lo[6:], hi[6:])
+    res = FitResult(p=off, landmarks=final, vertices=tracker.searcher.project(off), residual=0.0, iterations=(),
+                    stats=np.zeros(4), confidence=1.0)
+    start = tracker.landmark_start(res)
+    before = np.linalg.norm(sm.landmark_map @ res.vertices - final, axis=1).mean()
+    after = np.linalg.norm(sm.landmark_map @ tracker.searcher.project(start) - final, axis=1).mean()
+    print(f"{kind}: landmark error {before:.2f} -> {after:.3f} px")
+    assert after < 0.1 * before  # one step takes nine tenths of the way at least
+    assert after < 1.0  # px (3D: 0.49; rotation is not linear, one step does not finish it)
+    assert np.array_equal(start[n_q:], off[n_q:])  # the person's shape units are held
+
+
+def test_thumbnail_is_a_normalised_grey_miniature():
+    """``imaging.thumbnail``: 24x32, zero mean and unit norm, so that the sum of a product is a correlation (a
+    frame with itself: 1; with its negative: -1); a uniform frame gives zeros (a change from anything)."""
+    from aamtrack.imaging import THUMBNAIL_SIZE, thumbnail
+
+    rng = np.random.default_rng(3)
+    frame = cv2_blur(rng.integers(0, 256, (480, 640, 3)).astype(np.uint8))
+    t = thumbnail(frame)
+    assert t.shape == THUMBNAIL_SIZE[::-1] and t.dtype == np.float32
+    assert abs(float(t.mean())) < 1e-5 and abs(float(np.linalg.norm(t)) - 1.0) < 1e-5
+    assert abs(float((t * thumbnail(frame)).sum()) - 1.0) < 1e-5
+    assert abs(float((t * thumbnail(255 - frame)).sum()) + 1.0) < 1e-3
+    assert not thumbnail(np.full((480, 640, 3), 77, np.uint8)).any()
+    grey = frame[..., 1]
+    assert abs(float((thumbnail(grey) * thumbnail(np.dstack([grey] * 3))).sum()) - 1.0) < 1e-3  # grey or BGR
+
+
+def cv2_blur(img):
+    import cv2
+
+    return cv2.GaussianBlur(img, (0, 0), 8)
+
+
+def test_a_cut_restarts_the_track_with_a_detection(synth_model):
+    """``TrackerConfig.cut_below``: at a hard cut to the face elsewhere and at another size, the frame is detected
+    afresh (and fitted to a pixel or so), not searched from where the face was; with the test off it is not. The
+    smooth motion of ``test_tracks_a_written_video_to_a_pixel`` is never taken for a cut (every frame tracked)."""
+    from aamtrack.imaging import thumbnail
+
+    first, truth1 = synth.moving_face_frames(10)
+    ref = synth.face_layout()
+    second, truth2 = [], []
+    for i in range(10):
+        pts = synth.project2d(ref, 0.0, 100.0, 215.0 + i, 130.0)
+        g = synth.render(ref, pts, (320, 240))
+        second.append(np.dstack([g, g, g]))
+        truth2.append(pts)
+    frames, truth = first + second, np.concatenate([truth1, np.array(truth2)])
+    corr = float((thumbnail(first[-1]) * thumbnail(second[0])).sum())
+    print(f"thumbnail correlation at the cut {corr:.2f}")
+    assert corr < TrackerConfig().cut_below  # the premise: this is a cut by the rule
+    runs = {}
+    for cut in (TrackerConfig().cut_below, 0.0):
+        tracker = Tracker(synth_model, config=TrackerConfig(cut_below=cut))
+        runs[cut] = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
+    on, off = runs[TrackerConfig().cut_below], runs[0.0]
+    assert [r.status for r in on[:10]] == ["detected"] + ["tracked"] * 9
+    assert on[10].status == "detected" and all(r.status == "tracked" for r in on[11:])
+    assert np.linalg.norm(on[10].landmarks - truth[10], axis=1).mean() < 1.5  # px
+    assert off[10].status != "detected"  # without the rule the old track goes on (or is lost) first

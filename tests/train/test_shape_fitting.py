@@ -60,7 +60,7 @@ def test_candide_fit_recovers_projection():
 
 
 def test_analytic_jacobian_matches_finite_differences():
-    from aamtrack.train.shape_fit import landmark_problem
+    from aamtrack.mesh.landmark_fit import landmark_problem
 
     rng = np.random.default_rng(SEED)
     sm = synthetic_3d_model(rng)

@@ -91,10 +91,10 @@ def thumbnail(image: np.ndarray) -> np.ndarray:
     0.05 ms at any frame size on one core; area resizing of the whole frame would take 0.2 ms at 640x480."""
     H, W = image.shape[:2]
     step = max(1, min(H, W) // 64)
-    small = cv2.resize(np.ascontiguousarray(image[::step, ::step]), THUMBNAIL_SIZE, interpolation=cv2.INTER_AREA)
-    if small.ndim == 3:
-        small = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
-    t = small.astype(np.float32)
+    small = np.ascontiguousarray(image[::step, ::step])
+    if small.ndim == 3:  # grey per pixel before resizing: a grey frame and its BGR original give the same bits
+        small = cv2.cvtColor(small, cv2.COLOR_BGRA2GRAY if small.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    t = cv2.resize(small, THUMBNAIL_SIZE, interpolation=cv2.INTER_AREA).astype(np.float32)
     t -= t.mean()
     norm = float(np.linalg.norm(t))
     return t / norm if norm > 1e-3 else np.zeros_like(t)

@@ -52,11 +52,14 @@ class Frame:
     index : int -- 0-based position in the source
     timestamp : float -- seconds: the stream's presentation time (video), else ``index / fps``
     image : (H, W, 3) uint8 BGR, or None when the frame could not be decoded or read
+    thumbnail : (24, 32) float32 or None -- ``imaging.thumbnail`` of the image when made ahead (the tracker's
+        shot-change test makes it itself otherwise)
     """
 
     index: int
     timestamp: float
     image: np.ndarray | None
+    thumbnail: np.ndarray | None = None
 
 
 def gray(image: np.ndarray) -> np.ndarray:

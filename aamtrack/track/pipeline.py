@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Iterator
 
+from ..imaging import thumbnail
 from ..io.frames import Frame, gray
 from .timing import timed
 
@@ -196,10 +197,12 @@ def keep_freed_memory(*, trim_mb: int = 256, mmap_mb: int = 32) -> bool:
 
 def grey_frames(frames: Iterable) -> Iterator:
     """The frames with their images turned grey ((H, W) uint8; the tracker and the detector take grey images and
-    give the same results: they convert BGR to grey themselves, pixel by pixel). Run in the decoding thread, this
-    takes the conversion off the tracker's thread (and the detector converts once instead of once per try)."""
+    give the same results: they convert BGR to grey themselves, pixel by pixel), each with its thumbnail for the
+    tracker's shot-change test (``imaging.thumbnail``). Run in the decoding thread, this takes the conversion and
+    the thumbnail off the tracker's thread (and the detector converts once instead of once per try)."""
     for f in frames:
-        yield Frame(f.index, f.timestamp, None if f.image is None else gray(f.image))
+        g = None if f.image is None else gray(f.image)
+        yield Frame(f.index, f.timestamp, g, None if g is None else thumbnail(g))
 
 
 @dataclass

@@ -76,7 +76,8 @@ class TrackerConfig:
     longer there (0 never does). Consecutive frames of cap12 correlate at 0.90 or more (0.98 at the 1st
     percentile), the cuts between ``still_shots.py``'s photos at 0.70 at most (median 0.08), hard cuts within
     cap12 (light changes, black) at 0.49 at most; a uniform frame (a thumbnail of zeros) counts as a change too.
-    About 0.06 ms a frame.
+    About 0.06 ms a frame, in the decoding thread when the frames come from ``pipeline.grey_frames`` (``aamtrack
+    run``).
     sigma_per_shot: the person's shape (``sigma_frames``) is estimated anew after a shot change: a cut may show
     another person, and a held sigma that is not theirs costs more than the estimate's first frames
     (``still_shots.py``, each shot another person: see benchmarks/README.md).
@@ -361,7 +362,8 @@ class Tracker:
             timings = {}
             image = frame.image
             if cfg.cut_below > 0:
-                before, thumb = thumb, thumbnail(image)
+                made = getattr(frame, "thumbnail", None)  # made ahead in the decoding thread (``grey_frames``)
+                before, thumb = thumb, thumbnail(image) if made is None else made
                 if before is not None and float((before * thumb).sum()) < cfg.cut_below:  # a new shot
                     p = p_prev = None
                     if cfg.sigma_per_shot:

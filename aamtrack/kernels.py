@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels import landmark_fit as _lf
 from ._kernels import patches as _p
 from ._kernels import warp as _k
 
@@ -154,3 +155,23 @@ def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_
                          _in(basis, F32, 3, "basis"), _in(regressors, F32, 3, "regressors"),
                          _in(biases, F64, 2, "biases"), int(cells), int(cell), int(bins), float(floor),
                          _out(feat, F32, 2, "feat"))
+
+
+def landmark_residuals_jacobian(x, free_pose, n_coef: int, fit_sigma: bool, sigma_fixed, LM, LS, LA, points,
+                                width: float, lam_c: float, lam_s: float, shape_sd, r, J, *, jacobian: bool = True):
+    """Residuals into r and (if ``jacobian``) their Jacobian into J (rows as r, columns as x) of the landmark fit
+    (``aamtrack._kernels.landmark_fit._landmark_rj``: unknowns x, the layout of ``mesh.landmark_fit``)."""
+    _lf._landmark_rj(_in(x, F64, 1, "x"), _in(free_pose, I64, 1, "free_pose"), int(n_coef), bool(fit_sigma),
+                     _in(sigma_fixed, F64, 1, "sigma_fixed"), _in(LM, F64, 2, "LM"), _in(LS, F64, 3, "LS"),
+                     _in(LA, F64, 3, "LA"), _in(points, F64, 2, "points"), float(width), float(lam_c), float(lam_s),
+                     _in(shape_sd, F64, 1, "shape_sd"), _out(r, F64, 1, "r"), _out(J, F64, 2, "J"), bool(jacobian))
+
+
+def landmark_gauss_newton_step(x, free_pose, n_coef: int, sigma_fixed, LM, LS, LA, points, width: float,
+                               lam_c: float, damping: float, lo, hi) -> None:
+    """x (in place) <- one damped Gauss-Newton step of the landmark fit, sigma held
+    (``aamtrack._kernels.landmark_fit._gauss_newton_step``)."""
+    _lf._gauss_newton_step(_out(x, F64, 1, "x"), _in(free_pose, I64, 1, "free_pose"), int(n_coef),
+                           _in(sigma_fixed, F64, 1, "sigma_fixed"), _in(LM, F64, 2, "LM"), _in(LS, F64, 3, "LS"),
+                           _in(LA, F64, 3, "LA"), _in(points, F64, 2, "points"), float(width), float(lam_c),
+                           float(damping), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"))

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shape_model import N_POSE, ShapeModel, rotation_matrix
+from ..kernels import landmark_gauss_newton_step, landmark_residuals_jacobian
+from .shape_model import N_POSE, ShapeModel
 
 LAMBDA_SHAPE = 1e-3
 LAMBDA_COEF = 1e-4
@@ -35,11 +36,6 @@ def unpack(x, sm: ShapeModel, free_pose, fit_sigma, sigma_fixed):
     return q, sigma
 
 
-def _cross(x: float, y: float, z: float) -> np.ndarray:
-    """K(v): K(v) @ w = v x w."""
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
 def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
     """(residuals(x), jacobian(x)) of the fit of x = [free pose (log-scale for the scale), coefficients, sigma if
     ``fit_sigma``] to (68, 2) points (module docstring)."""
@@ -59,26 +55,25 @@ class LandmarkFitter:
         n_p = len(free_pose(sm))
         self._lo = np.r_[np.full(n_p, -np.inf), lo_q[N_POSE:]]
         self._hi = np.r_[np.full(n_p, np.inf), hi_q[N_POSE:]]
+        self._free = np.array(free_pose(sm), np.int64)
 
     def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped
         Gauss-Newton steps (Levenberg's diagonal, ``damping``) of the landmark fit to points (68, 2), sigma held,
-        the coefficients kept in their bounds. One step from the previous frame's fit is what the tracker takes
-        (``TrackerConfig.tracked_start``): close to the fit's minimum already, and about 0.1 ms."""
+        the coefficients kept in their bounds (compiled: ``kernels.landmark_gauss_newton_step``). One step from
+        the previous frame's fit is what the tracker takes (``TrackerConfig.tracked_start``): close to the fit's
+        minimum already, and about 0.02 ms."""
         sm = self.sm
         n_q = sm.n_q
         pose = free_pose(sm)
-        sigma = np.asarray(p[n_q:], float)
-        residuals, jacobian = self.problem(np.asarray(points, float), pose, False, sigma)
+        sigma = np.ascontiguousarray(p[n_q:], dtype=np.float64)
+        points = np.asarray(points, float)
         x = np.r_[p[pose], p[N_POSE:n_q]].astype(float)
-        k = pose.index(3)
-        x[k] = np.log(max(float(p[3]), 1e-12))
+        x[pose.index(3)] = np.log(max(float(p[3]), 1e-12))
+        width = float(np.ptp(points[:, 0]) + 1e-9)
         for _ in range(iterations):
-            J = jacobian(x)
-            A = J.T @ J
-            A[np.diag_indices_from(A)] *= 1.0 + damping
-            A[np.diag_indices_from(A)] += 1e-12
-            x = np.clip(x - np.linalg.solve(A, J.T @ residuals(x)), self._lo, self._hi)
+            landmark_gauss_newton_step(x, self._free, sm.n_coef, sigma, self.LM, self.LS, self.LA, points,
+                                       width, LAMBDA_COEF, damping, self._lo, self._hi)
         q, _ = unpack(x, sm, pose, False, sigma)
         out = np.array(p, float)
         out[pose] = q[pose]
@@ -86,56 +81,29 @@ class LandmarkFitter:
         return out
 
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
-        """``landmark_problem`` with this model's precomputed arrays."""
-        LM, LS, LA = self.LM, self.LS, self.LA
+        """``landmark_problem`` with this model's precomputed arrays: (residuals(x), jacobian(x)), both from the
+        compiled ``kernels.landmark_residuals_jacobian``."""
         sm = self.sm
+        points = np.asarray(points, float)
         width = float(np.ptp(points[:, 0]) + 1e-9)
-        n_p = len(free_pose)
-        n_c = sm.n_coef
+        pose = np.asarray(free_pose, np.int64)
+        sigma_fixed = np.zeros(sm.n_shape) if sigma_fixed is None else np.asarray(sigma_fixed, float)
+        n_x = len(pose) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
+        n_r = 2 * len(points) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
+        sd = np.asarray(sm.shape_sd, float) if sm.n_shape else np.ones(0)
+        sd = np.broadcast_to(sd, (sm.n_shape,)).astype(float)
 
-        def _rot(q):
-            """(R, {axis: dR / d angle}) of R = Rz Ry Rx: dR/drx = R K(x), dR/dry = K(Rz y) R, dR/drz = K(z) R,
-            with K(v) the cross-product matrix of v."""
-            R = rotation_matrix(*q[:3])
-            cz, sz = np.cos(q[2]), np.sin(q[2])
-            return R, {0: R @ _cross(1.0, 0.0, 0.0), 1: _cross(-sz, cz, 0.0) @ R, 2: _cross(0.0, 0.0, 1.0) @ R}
-
-        def _shape(q, sigma):
-            return LM + np.tensordot(sigma, LS, axes=1) + np.tensordot(q[N_POSE:], LA, axes=1)
+        def run(x, jacobian):
+            r, J = np.empty(n_r), np.empty((n_r, n_x) if jacobian else (0, 0))
+            landmark_residuals_jacobian(x, pose, sm.n_coef, fit_sigma, sigma_fixed, self.LM, self.LS, self.LA,
+                                        points, width, LAMBDA_COEF, LAMBDA_SHAPE, sd, r, J, jacobian=jacobian)
+            return r, J
 
         def residuals(x):
-            q, sigma = unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-            R, _ = _rot(q)
-            X = _shape(q, sigma)
-            u = q[3] * X @ R[0] + q[4]
-            v = -q[3] * X @ R[1] + q[5]
-            res = [(u - points[:, 0]) / width, (v - points[:, 1]) / width, np.sqrt(LAMBDA_COEF) * q[N_POSE:]]
-            if fit_sigma:
-                res.append(np.sqrt(LAMBDA_SHAPE) * sigma / sm.shape_sd)
-            return np.concatenate(res)
+            return run(x, False)[0]
 
         def jacobian(x):
-            """d residuals / dx, analytic (the numerical one cost a residual evaluation per unknown)."""
-            q, sigma = unpack(x, sm, free_pose, fit_sigma, sigma_fixed)
-            R, dR = _rot(q)
-            X = _shape(q, sigma)
-            s = q[3] / width
-            n_lm = len(points)
-            J = np.zeros((2 * n_lm + n_c + (sm.n_shape if fit_sigma else 0), len(x)))
-            for a, j in enumerate(free_pose):
-                if j < 3:
-                    J[:n_lm, a], J[n_lm:2 * n_lm, a] = s * X @ dR[j][0], -s * X @ dR[j][1]
-                elif j == 3:
-                    J[:n_lm, a], J[n_lm:2 * n_lm, a] = s * X @ R[0], -s * X @ R[1]
-                else:
-                    J[(j - 4) * n_lm:(j - 3) * n_lm, a] = 1.0 / width
-            cols = [(LA, n_p)] + ([(LS, n_p + n_c)] if fit_sigma else [])
-            for B, c0 in cols:
-                J[:n_lm, c0:c0 + len(B)] = s * (B @ R[0]).T
-                J[n_lm:2 * n_lm, c0:c0 + len(B)] = -s * (B @ R[1]).T
-            J[2 * n_lm:2 * n_lm + n_c, n_p:n_p + n_c] = np.sqrt(LAMBDA_COEF) * np.eye(n_c)
-            if fit_sigma:
-                J[2 * n_lm + n_c:, n_p + n_c:] = np.diag(np.sqrt(LAMBDA_SHAPE) / sm.shape_sd)
-            return J
+            """d residuals / dx, analytic."""
+            return run(x, True)[1]
 
         return residuals, jacobian

@@ -6,7 +6,8 @@
 Each shot is one helen_test photo (held out from training; photos whose outer eye corners are at least 40 px
 apart and in which Haar finds one face only, drawn with a fixed seed) scaled so the outer eye corners are 90 px apart in a 640x480 frame, with a slow
 pan (30 px) and zoom (8%) over ``--frames`` frames; the shots follow one another with hard cuts, a new person at
-each. The labels move with the image. One ``Tracker.track`` runs over the whole sequence, as ``aamtrack run``
+each. The labels move with the image. The frame is filled by reflecting the photo at its borders, so mirrored
+parts of the photo (sometimes of the face) appear towards the frame's edges. One ``Tracker.track`` runs over the whole sequence, as ``aamtrack run``
 would (no smoothing).
 
 Reports per model and tracker configuration: the share of all frames tracked with NME <= 0.08, the mean NME over

@@ -531,3 +531,14 @@ def test_a_cut_restarts_the_track_with_a_detection(synth_model):
     assert on[10].status == "detected" and all(r.status == "tracked" for r in on[11:])
     assert np.linalg.norm(on[10].landmarks - truth[10], axis=1).mean() < 1.5  # px
     assert off[10].status != "detected"  # without the rule the old track goes on (or is lost) first
+
+
+def test_tracked_frames_search_the_finer_couples(synth_model, synth_model3d):
+    """``TrackerConfig.skip_coarse_tracked``: by default 3D tracked frames search the finest couple only, 2D ones
+    the two finer couples; a value past the couples still leaves the finest one searching."""
+    model3d = synth_model3d[0]
+    assert len(model3d.couples) == 3 and len(synth_model.couples) == 3
+    assert Tracker(model3d).skip_tracked == 2
+    assert Tracker(synth_model).skip_tracked == 1
+    assert Tracker(model3d, config=TrackerConfig(skip_coarse_tracked=0)).skip_tracked == 0
+    assert Tracker(synth_model, config=TrackerConfig(skip_coarse_tracked=7)).skip_tracked == 2

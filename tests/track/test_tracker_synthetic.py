@@ -542,3 +542,30 @@ def test_tracked_frames_search_the_finer_couples(synth_model, synth_model3d):
     assert Tracker(synth_model).skip_tracked == 1
     assert Tracker(model3d, config=TrackerConfig(skip_coarse_tracked=0)).skip_tracked == 0
     assert Tracker(synth_model, config=TrackerConfig(skip_coarse_tracked=7)).skip_tracked == 2
+
+
+def test_a_low_confidence_tracked_frame_is_searched_again_with_the_middle_couple(synth_model3d):
+    """``TrackerConfig.coarser_below``: a 3D tracked frame (finest couple only) whose confidence is under it is
+    searched again from the same start with the middle couple too, and the more confident fit kept; so with the
+    rule always on, the first tracked frame is at least as confident as with it off, and where the two searches
+    differ it is one of them."""
+    import synth3d
+    from conftest import SEED
+
+    model3d, candide = synth_model3d
+    rng = np.random.default_rng(SEED + 3)
+    faces, _, _, _ = synth3d.posed_faces(candide, 6, rng, yaw_sd=0.0, pitch_sd=0.0)
+    frames = [faces[0], np.roll(faces[0], 2, axis=1)]  # a detection, then the face moved by 2 px
+    runs = {}
+    for below in (0.0, 1.01):
+        cfg = TrackerConfig(coarser_below=below, cut_below=0.0)
+        runs[below] = list(Tracker(model3d, config=cfg).track(synth_frame(i, f) for i, f in enumerate(frames)))
+    off, on = runs[0.0], runs[1.01]
+    assert off[0].status == on[0].status == "detected" and off[1].status == on[1].status == "tracked"
+    assert np.array_equal(off[0].landmarks, on[0].landmarks)  # detections do not use the rule
+    assert on[1].confidence >= off[1].confidence
+    both = list(Tracker(model3d, config=TrackerConfig(skip_coarse_tracked=1, coarser_below=0.0, cut_below=0.0))
+                .track(synth_frame(i, f) for i, f in enumerate(frames)))
+    print(f"finest only {off[1].confidence:.6f}, two couples {both[1].confidence:.6f}, rule on {on[1].confidence:.6f}")
+    assert off[1].confidence != both[1].confidence  # the premise: the two searches differ here
+    assert on[1].confidence == max(off[1].confidence, both[1].confidence)  # the more confident of the two searches

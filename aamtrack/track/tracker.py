@@ -191,9 +191,15 @@ class Tracker:
         return replace(best, p=p, landmarks=best.landmarks + off, vertices=best.vertices + off), t_pyr
 
     def fit_detection(self, image: np.ndarray, found: tuple, shape_params=None) -> tuple[FitResult, float]:
-        """The most confident fit from the starts of one detection (box, angle), then one more search from it on
-        the same crop and levels (``refine_detection``). Returns (fit, seconds spent on the crop's levels)."""
-        starts = self.detection_starts(found[0], shape_params, angle=found[1], shape=image.shape)
+        """The most confident fit from the starts of one detection (box, angle) (``fit_starts``). Returns (fit,
+        seconds spent on the crop and its levels)."""
+        return self.fit_starts(image, self.detection_starts(found[0], shape_params, angle=found[1],
+                                                            shape=image.shape), shape_params)
+
+    def fit_starts(self, image: np.ndarray, starts: list, shape_params=None) -> tuple[FitResult, float]:
+        """The most confident fit from several starts on one crop, then one more search from it on the same crop
+        and levels (``refine_detection``): a detection's fit (``fit_detection``, ``rescue``). Returns (fit,
+        seconds spent on the crop and its levels)."""
         t0 = time.perf_counter()
         crop = self.crop(image, starts)
         t_crop = time.perf_counter() - t0
@@ -253,18 +259,12 @@ class Tracker:
 
     def rescue(self, image: np.ndarray, found: tuple, shape_params=None) -> tuple[FitResult, float]:
         """The most confident fit from the rough poses of the detection's box (box, angle) moved by each of
-        ``TrackerConfig.rescue`` (x shift, y shift, scale), searched on one crop, then refined as a detection's
-        fit is. Returns (fit, seconds spent on the crop's levels)."""
+        ``TrackerConfig.rescue`` (x shift, y shift, scale), searched as a detection's starts are (``fit_starts``).
+        Returns (fit, seconds spent on the crop and its levels)."""
         (x, y, w, h), angle = found
         starts = [self.initial_p((x + dx * w + 0.5 * w * (1.0 - s), y + dy * w + 0.5 * h * (1.0 - s), s * w, s * h),
                                  shape_params, angle=angle, shape=image.shape) for dx, dy, s in self.config.rescue]
-        crop = self.crop(image, starts)
-        refine = self.config.refine_detection
-        res, t_pyr = self.fit_roi(image, starts, shape_params, crop=crop, landmarks=not refine)
-        if refine:
-            res, t_more = self.fit_roi(image, [res.p], shape_params, first=self.config.skip_coarse, crop=crop)
-            t_pyr += t_more
-        return res, t_pyr
+        return self.fit_starts(image, starts, shape_params)
 
     def detection_starts(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> list:
         """The search starts after a detection: the rough pose from the box (poster: guessed feature points,

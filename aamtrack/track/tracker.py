@@ -142,6 +142,8 @@ class Tracker:
         skip = config.skip_coarse_tracked
         skip = (2 if model.shape.kind == "3d" else 1) if skip is None else skip
         self.skip_tracked = max(0, min(skip, len(model.couples) - 1))  # the finest couple always searches
+        how = config.tracked_start
+        self.tracked_start_kind = ("landmarks" if model.shape.kind == "3d" else "similarity") if how == "auto" else how
         # the ROI needs to cover only what the texture maps sample (Candide's scalp is not in them)
         self.roi_vertices = np.unique(np.concatenate([t.frame.pix_vid.ravel() for t in model.textures]))
 
@@ -290,9 +292,7 @@ class Tracker:
 
     def tracked_start(self, res: FitResult) -> np.ndarray:
         """Where the next frame's search starts after the accepted fit res (``TrackerConfig.tracked_start``)."""
-        how = self.config.tracked_start
-        if how == "auto":
-            how = "landmarks" if self.model.shape.kind == "3d" else "similarity"
+        how = self.tracked_start_kind
         if how == "landmarks":
             return self.landmark_start(res)
         if how == "similarity":
@@ -398,10 +398,14 @@ class Tracker:
                     step = cfg.predict_damping * (p - p_prev)
                     start[[2, 4, 5]] += step[[2, 4, 5]]
                 t1 = time.perf_counter()
-                res, t_pyr = self.fit_roi(image, [start], shape_params, first=self.skip_tracked,
+                crop = self.crop(image, [start])
+                t_crop = time.perf_counter() - t1
+                res, t_pyr = self.fit_roi(image, [start], shape_params, first=self.skip_tracked, crop=crop,
                                           last=cfg.landmark_stages_tracked)
+                t_pyr += t_crop
                 if res.confidence < cfg.coarser_below and self.skip_tracked > cfg.skip_coarse:
-                    alt, t_more = self.fit_roi(image, [start], shape_params, first=cfg.skip_coarse,
+                    # the same start on the same crop and levels, with the coarser couple too
+                    alt, t_more = self.fit_roi(image, [start], shape_params, first=cfg.skip_coarse, crop=crop,
                                                last=cfg.landmark_stages_tracked)
                     t_pyr += t_more
                     if alt.confidence > res.confidence:

@@ -240,6 +240,21 @@ def _image_levels(feats, factors, i: int) -> tuple[_ByFactor, list]:
     return _ByFactor({r: feats[k][i] for k, r in enumerate(f)}), f
 
 
+def _box_start(sm: ShapeModel, box, box_points: np.ndarray) -> np.ndarray:
+    """The search vector of a Haar box's rough pose (``initial_pose`` of the points guessed from it), coefficients
+    and shape units 0: where a detection's search starts."""
+    return np.r_[initial_pose(sm, guess_points(box, box_points)), np.zeros(sm.n_shape)]
+
+
+def _image_box(boxes: np.ndarray, i: int, n_orig: int, width: int) -> tuple | None:
+    """Training image i's Haar box, mirrored for the mirror images (i >= n_orig, ``width`` pixels wide); None when
+    Haar found no face in the original."""
+    x, y, w, h = boxes[i % n_orig]
+    if not np.isfinite(x):
+        return None
+    return (width - x - w if i >= n_orig else x, y, w, h)
+
+
 def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_orig: int, n_sharp: int):
     """The search's own fits from each training image's Haar box (mirrored images: the mirrored box), as the
     tracker fits a still: (fits (k, 68, 2), index of the image each belongs to). Images without a box have none."""
@@ -247,20 +262,17 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
     sm = model.shape
     out, idx = [], []
     for i in range(n_sharp):
-        x, y, w, h = boxes[i % n_orig]
-        if not np.isfinite(x):
+        box = _image_box(boxes, i, n_orig, widths[i])
+        if box is None:
             continue
-        if i >= n_orig:
-            x = widths[i] - x - w
-        p0 = np.r_[initial_pose(sm, guess_points((x, y, w, h), box_points)), np.zeros(sm.n_shape)]
         levels, f = _image_levels(feats, factors, i)
-        res = searcher.fit(levels, p0, factors=f)
+        res = searcher.fit(levels, _box_start(sm, box, box_points), factors=f)
         out.append(res.landmarks)
         idx.append(i)
     return np.array(out).reshape(-1, 68, 2), np.array(idx, np.int64)
 
 
-def _blurred_cascade_data(model: Model, gray, pts, P, boxes, box_points, factors, n_orig: int, n_sharp: int,
+def _blurred_cascade_data(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int,
                           images: list, scales: list, fits: np.ndarray, owner: np.ndarray, owner_group: np.ndarray,
                           config: TrainConfig) -> tuple:
     """The landmark cascade's data plus Gaussian-blurred copies of a share ``landmark_blur_share`` of the sharp
@@ -281,12 +293,10 @@ def _blurred_cascade_data(model: Model, gray, pts, P, boxes, box_points, factors
         f = [fk[i] for fk in factors]
         images.append(levels.resampled(f[-1]))
         scales.append(f[-1])
-        x, y, w, h = boxes[i % n_orig]
-        if np.isfinite(x):
-            if i >= n_orig:  # a mirror image: the mirrored box
-                x = gray[i].shape[1] - x - w
-            p0 = np.r_[initial_pose(sm, guess_points((x, y, w, h), box_points)), np.zeros(sm.n_shape)]
-            extra_fits.append(searcher.fit(levels, p0, factors=f, landmarks=False).landmarks)
+        box = _image_box(boxes, i, n_orig, gray[i].shape[1])
+        if box is not None:
+            extra_fits.append(searcher.fit(levels, _box_start(sm, box, box_points), factors=f,
+                                           landmarks=False).landmarks)
             extra_owner.append(n_sharp + j)
         else:
             rows = np.flatnonzero(owner == i)
@@ -474,7 +484,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         y.append(float(truth is not None and e < 0.06))
 
     def start(box, roll=0.0):
-        p0 = np.r_[initial_pose(sm, guess_points(box, box_points)), np.zeros(sm.n_shape)]
+        p0 = _box_start(sm, box, box_points)
         p0[2] += roll
         return p0
 
@@ -543,8 +553,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     box_points = box_geometry(boxes, np.asarray(points, float))
     det = np.flatnonzero(np.isfinite(boxes[:, 0]))
     log.info("Haar detector found %d of %d training faces", len(det), n_orig)
-    starts0 = np.array([np.r_[initial_pose(sm, guess_points(boxes[i], box_points)), np.zeros(sm.n_shape)]
-                        for i in det]).reshape(len(det), len(P[0]))
+    starts0 = np.array([_box_start(sm, boxes[i], box_points) for i in det]).reshape(len(det), len(P[0]))
     det_deltas = inverse_compose(P[det], starts0, free_all) if len(det) else np.zeros((0, len(free_all)))
     t_det = time.perf_counter() - t0 - t_shape
 
@@ -614,7 +623,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         lmk_truth, lmk_groups = pts[:n_sharp], owner_group[:n_sharp]
         if config.landmark_blur_share > 0:  # blurred copies: the sharp image's truth and group, their own fits
             lmk_images, lmk_scales, lmk_truth, lmk_groups, fits_det, owner_det = _blurred_cascade_data(
-                replace(model, validator=validator), gray, pts, P, boxes, box_points, factors, n_orig, n_sharp,
+                replace(model, validator=validator), gray, pts, boxes, box_points, factors, n_orig, n_sharp,
                 lmk_images, lmk_scales, fits_det, owner_det, owner_group, config)
         landmark_cascade, lmk_record = learn_landmark_cascade(
             lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,

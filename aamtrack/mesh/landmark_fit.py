@@ -87,11 +87,10 @@ class LandmarkFitter:
         points = np.asarray(points, float)
         width = float(np.ptp(points[:, 0]) + 1e-9)
         pose = np.asarray(free_pose, np.int64)
-        sigma_fixed = np.zeros(sm.n_shape) if sigma_fixed is None else np.asarray(sigma_fixed, float)
+        sigma_fixed = np.asarray(sigma_fixed, float)
         n_x = len(pose) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
         n_r = 2 * len(points) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
-        sd = np.asarray(sm.shape_sd, float) if sm.n_shape else np.ones(0)
-        sd = np.broadcast_to(sd, (sm.n_shape,)).astype(float)
+        sd = np.asarray(sm.shape_sd, float)  # (n_shape,), empty for 2D
 
         def run(x, jacobian):
             r, J = np.empty(n_r), np.empty((n_r, n_x) if jacobian else (0, 0))

@@ -35,16 +35,14 @@ Scores
     fitted images, difference to the clean mean. Goal: clean: >= 92% and mean <= 0.035 (the helen_test
     bar); a variant: >= 92% and mean within 0.01 of clean.
 NME = mean point error over the 68 points / outer eye-corner distance of the (moved) reference, so small30's
-errors are measured in units of 30 px: one pixel there is 0.033. Points follow OpenCV's convention (pixel
-centres at integer coordinates); mirroring maps x to w - 1 - x. The JSON also gives ``bias_px``, the mean signed
-(x, y) error over the tracked points: a shift the tracker shares with its training labels stays the same under a
-mirror, while one of the labels alone (a half-pixel convention) turns around (helen_test's crops were resized
-from 300-W labels: under half a pixel by the crop arithmetic, 0.008 NME at helen's 118 px between the eyes).
-Measured with the shipped 3D model (full run): mean x error +0.2 px clean, +1.4 px mirrored on cap12; -0.1 px
-clean, +3.4 px mirrored on helen_test (2D: +3.5 px), the same on every group of points (jaw, brows, nose, eyes,
-mouth: +2.8 to +3.8 px, 150 images): a whole-face shift of about 0.02 of the eye distance that a pixel
-convention cannot explain, likely learned from a one-sided training set (helen_test's labelled nose bridge sits
-on average 1.5 px right of the eye-corner midpoint), which mirrored training data should remove.
+errors are measured in units of 30 px: one pixel there is 0.033. Points are in the package's convention
+(300-W's 1-based pixels, ``aamtrack.metrics.PIXEL_ORIGIN``) and move with the image through OpenCV's: a mirror maps
+x to w + 1 - x. The JSON also gives ``bias_px``, the mean signed (x, y) error over the tracked points: a shift the
+tracker shares with its training labels stays the same under a mirror, while a pixel-convention slip turns
+around. Until 2026-11-26 this script, and training's mirrored copies, mirrored as w - 1 - x (OpenCV's convention
+on 1-based points): the mirrored references sat 2 px left of their faces, and the models, learning from both
+sides, 1 px right of every unmirrored face (shipped 3D model, helen_test: mean x error -1.4 px clean, +3.4 px
+mirrored; after the fix and a retrain: see benchmarks/README.md).
 The clean variant always runs (the differences need it).
 ``--limit N`` takes the first N video frames and the first N stills, for a quick look.
 """
@@ -73,7 +71,7 @@ for _path in (str(REPO), str(Path(__file__).resolve().parent)):
         sys.path.insert(0, _path)
 
 from _common import machine_name, write_json  # noqa: E402
-from aamtrack.mesh.landmarks import IBUG_MIRROR  # noqa: E402
+from aamtrack.mesh.landmarks import affine_points, mirror_points  # noqa: E402
 from aamtrack.metrics import eye_distance, nme  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
@@ -111,13 +109,8 @@ GOAL_STILLS_SHARE = 0.92  # share of all stills that are good
 
 # -------------------------------------------------------------------------------- transforms (pure, tested)
 # Each takes one BGR uint8 image (h, w, 3) and its (68, 2) float points and returns new ones; the input is not
-# changed. Points use OpenCV's convention: pixel centres at integer coordinates.
-
-
-def affine_points(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """(n, 2) points moved by a 2x3 affine ``matrix`` (as given to cv2.warpAffine)."""
-    points = np.asarray(points, dtype=np.float64)
-    return points @ np.asarray(matrix, np.float64)[:, :2].T + np.asarray(matrix, np.float64)[:, 2]
+# changed. Points are in the package's convention (300-W's 1-based pixels, ``aamtrack.metrics.PIXEL_ORIGIN``);
+# the geometric transforms move them through OpenCV's (pixel centres at integers), as OpenCV moves the image.
 
 
 def dark_cast(image, points, *, gains=DARK_GAINS):
@@ -202,11 +195,9 @@ def rotate(image, points, *, degrees: float, center=None):
 
 
 def mirror(image, points):
-    """Left-right flip; the points are flipped and renumbered with :data:`IBUG_MIRROR` (iBUG-68 points)."""
+    """Left-right flip; the points are flipped and renumbered (``aamtrack.mesh.landmarks.mirror_points``)."""
     w = image.shape[1]
-    pts = np.array(points, dtype=np.float64)
-    pts[:, 0] = (w - 1) - pts[:, 0]
-    return np.ascontiguousarray(image[:, ::-1]), pts[IBUG_MIRROR]
+    return np.ascontiguousarray(image[:, ::-1]), mirror_points(points, w)
 
 
 def shrink(image, points, *, scale: float, fill: int = FILL_GREY):
@@ -220,10 +211,7 @@ def shrink(image, points, *, scale: float, fill: int = FILL_GREY):
     out = np.full_like(image, fill)
     out[y0:y0 + nh, x0:x0 + nw] = small
     sx, sy = nw / w, nh / h  # the scale OpenCV used: its pixel centres map as (x + 0.5) * s - 0.5
-    pts = np.array(points, dtype=np.float64)
-    pts[:, 0] = (pts[:, 0] + 0.5) * sx - 0.5 + x0
-    pts[:, 1] = (pts[:, 1] + 0.5) * sy - 0.5 + y0
-    return out, pts
+    return out, affine_points(points, [[sx, 0.0, 0.5 * sx - 0.5 + x0], [0.0, sy, 0.5 * sy - 0.5 + y0]])
 
 
 BLANK_KINDS = ("black", "grey", "colour", "noise")

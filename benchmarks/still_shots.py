@@ -31,6 +31,7 @@ import numpy as np
 from aamtrack.detector import HaarDetector
 from aamtrack.io.dataset import find_pairs, load_pair
 from aamtrack.io.frames import Frame
+from aamtrack.mesh.landmarks import affine_points
 from aamtrack.metrics import nme
 from aamtrack.model import load_model
 from aamtrack.track.tracker import Tracker, TrackerConfig
@@ -69,7 +70,7 @@ def build_shots(data: Path, n_shots: int, n_frames: int, seed: int = 3) -> tuple
             A = np.array([[s, 0.0, W / 2 + 30 * np.sin(2 * np.pi * u + k) - s * c[0]],
                           [0.0, s, H / 2 + 15 * np.cos(2 * np.pi * u + k) - s * c[1]]])
             frames.append(cv2.warpAffine(img, A, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT))
-            refs.append(P @ A[:, :2].T + A[:, 2])
+            refs.append(affine_points(P, A))
             shot.append(k)
         k += 1
     return frames, np.array(refs), np.array(shot)

@@ -15,20 +15,24 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import robustness as rb  # noqa: E402
 from conftest import SEED  # noqa: E402
 
+from aamtrack.mesh.landmarks import IBUG_MIRROR  # noqa: E402
+from aamtrack.metrics import PIXEL_ORIGIN  # noqa: E402
+
 SIZE = (200, 160)  # w, h
 
 
 def _marker(p, *, size=SIZE, sigma=2.0) -> np.ndarray:
-    """(h, w, 3) uint8: a Gaussian blob of ``sigma`` px centred at the sub-pixel point ``p`` on black."""
+    """(h, w, 3) uint8: a Gaussian blob of ``sigma`` px centred at the sub-pixel point ``p`` (the package's 1-based
+    pixel convention, ``PIXEL_ORIGIN``) on black."""
     w, h = size
-    yy, xx = np.mgrid[0:h, 0:w]
+    yy, xx = np.mgrid[0:h, 0:w] + PIXEL_ORIGIN
     g = 200.0 * np.exp(-((xx - p[0]) ** 2 + (yy - p[1]) ** 2) / (2 * sigma * sigma))
     return np.repeat(np.rint(g)[..., None], 3, axis=2).astype(np.uint8)
 
 
 def _centroid(image) -> np.ndarray:
     g = image[..., 1].astype(np.float64)
-    yy, xx = np.mgrid[0:g.shape[0], 0:g.shape[1]]
+    yy, xx = np.mgrid[0:g.shape[0], 0:g.shape[1]] + PIXEL_ORIGIN
     return np.array([(g * xx).sum() / g.sum(), (g * yy).sum() / g.sum()])
 
 
@@ -66,7 +70,7 @@ def test_mirror_moves_points_with_a_marker_and_renumbers_them():
     out, moved = rb.mirror(image, pts)
     # after the flip it is the image-right outer corner: iBUG 45 of the mirrored face
     assert np.abs(_centroid(out) - moved[45]).max() < 0.05  # px
-    assert moved[45, 0] == pytest.approx(SIZE[0] - 1 - pts[36, 0])
+    assert moved[45, 0] == pytest.approx(SIZE[0] + 1 - pts[36, 0])  # 1-based: column 1 <-> column w
 
 
 def test_mirror_twice_is_identity():
@@ -83,7 +87,7 @@ def test_mirror_twice_is_identity():
 def test_ibug_mirror_permutation_fits_a_symmetric_face():
     import synth
 
-    perm = rb.IBUG_MIRROR
+    perm = IBUG_MIRROR
     assert sorted(perm) == list(range(68))
     assert np.array_equal(perm[perm], np.arange(68))  # an involution
     # synth.face_layout is a left-right symmetric face in iBUG order (x right, centred on x = 0): flipped and

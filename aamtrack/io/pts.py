@@ -17,7 +17,11 @@ tracker's results, the CSV columns, ``run --pts``) is in this same convention, b
 textures at the annotated coordinates. A ``.pts`` file written by ``run --pts`` therefore overlays the image
 exactly as a 300-W annotation does. (Checked on cap12 with the shipped 3D model: its points sit +0.19, -0.17 px
 from the dlib reference on average, and shifting them by -1 px raised the NME against dlib from 0.0471 to
-0.0488; so the benchmarks compare with the peers unshifted too.)
+0.0488; so the benchmarks compare with the peers unshifted too.) Code that moves points with an image (a mirror,
+a resize, a rotation made with OpenCV, whose pixel centres are at integers) goes through OpenCV's convention:
+subtract ``aamtrack.metrics.PIXEL_ORIGIN`` (1), transform, add it back. Mirroring as ``w - 1 - x`` on these points, as training's
+mirrored copies once did, put every mirrored label 2 px to the left of its face (0.017 of helen's eye distance):
+a model learning from both sides then splits the difference and errs by 1 px on every unmirrored face.
 """
 
 from __future__ import annotations

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..metrics import PIXEL_ORIGIN
+
 # iBUG-68 index (0-based) -> Candide-3 vertex. Candide's +x is the subject's left, the image right.
 CANDIDE_ANCHORS = {
     36: 53,  # outer corner of the image-left eye (MPEG-4 3.12)
@@ -33,12 +35,20 @@ IBUG_MIRROR = np.array(list(range(16, -1, -1)) + list(range(26, 16, -1)) + [27, 
 
 
 def mirror_points(points: np.ndarray, width: int) -> np.ndarray:
-    """(..., 68, 2) landmarks of the horizontally mirrored image (``width`` pixels wide, pixel centres at
-    integers): x -> width - 1 - x, and left and right points swap names."""
+    """(..., 68, 2) landmarks of the horizontally mirrored image (``width`` pixels wide; points in the package's
+    pixel convention, ``metrics.PIXEL_ORIGIN``: x -> width - 1 + 2 origin - x, so x -> width + 1 - x for 300-W's
+    1-based points), and left and right points swap names."""
     out = np.asarray(points, float)[..., IBUG_MIRROR, :].copy()
-    out[..., 0] = width - 1 - out[..., 0]
+    out[..., 0] = width - 1 + 2.0 * PIXEL_ORIGIN - out[..., 0]
     return out
 
+
+
+def affine_points(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """(..., 2) points (the package's pixel convention, ``metrics.PIXEL_ORIGIN``) moved with an image that a 2x3
+    affine ``matrix`` maps as ``cv2.warpAffine`` does (OpenCV's convention: pixel centres at integers)."""
+    A = np.asarray(matrix, np.float64)
+    return (np.asarray(points, np.float64) - PIXEL_ORIGIN) @ A[:, :2].T + A[:, 2] + PIXEL_ORIGIN
 
 # Triangles of the eyeballs and pupils (Candide 3.1.4 added them last): they lie behind the eyelid surface
 # and are used for landmarks only where nothing else is under a point.

@@ -4,7 +4,8 @@ points, and the bookkeeping that keeps an image and its copies together."""
 import cv2
 import numpy as np
 
-from aamtrack.mesh.landmarks import mirror_points
+from aamtrack.mesh.landmarks import affine_points, mirror_points
+from aamtrack.metrics import PIXEL_ORIGIN
 from aamtrack.train.pipeline import TrainConfig, _augment, train_model
 from conftest import SEED, SYNTH_COUPLES
 import synth
@@ -24,6 +25,35 @@ def test_mirror_and_blurred_copies():
         assert abs(float(gray[i].mean()) - float(gray[j].mean())) < 1.0  # same image, blurred
     _, _, none = _augment(images, points, False, 0.0)
     assert np.array_equal(none, np.arange(6))
+
+
+def test_mirrored_points_stay_on_what_they_mark():
+    """A point marks a blob in the package's 1-based pixels (300-W's, PIXEL_ORIGIN): after cv2.flip the mirrored
+    point (renumbered) marks the same blob. The former x -> w - 1 - x put every mirrored label 2 px to the left."""
+    w, h = 120, 90
+    p = np.array([37.3, 51.6])  # 1-based: the blob is centred at OpenCV pixel (36.3, 50.6)
+    yy, xx = np.mgrid[0:h, 0:w] + PIXEL_ORIGIN
+    blob = np.exp(-((xx - p[0]) ** 2 + (yy - p[1]) ** 2) / (2 * 2.0 ** 2))
+    flipped = cv2.flip(blob, 1)
+    centre = np.array([(flipped * xx).sum(), (flipped * yy).sum()]) / flipped.sum()
+    points = np.zeros((68, 2))
+    points[36] = p  # the subject's right outer eye corner: iBUG 45 once mirrored
+    moved = mirror_points(points, w)
+    assert np.abs(moved[45] - centre).max() < 1e-6  # px
+    assert moved[45, 0] == w + 1 - p[0]
+
+
+def test_affine_points_follow_warp_affine():
+    """Points moved by affine_points mark the same blob after cv2.warpAffine (rotation, scale and shift)."""
+    w, h = 160, 120
+    p = np.array([70.4, 48.2])
+    yy, xx = np.mgrid[0:h, 0:w] + PIXEL_ORIGIN
+    blob = np.exp(-((xx - p[0]) ** 2 + (yy - p[1]) ** 2) / (2 * 3.0 ** 2))
+    A = cv2.getRotationMatrix2D((60.0, 50.0), 25.0, 0.8)
+    A[:, 2] += (7.5, -3.25)
+    out = cv2.warpAffine(blob, A, (w, h), flags=cv2.INTER_LINEAR)
+    centre = np.array([(out * xx).sum(), (out * yy).sum()]) / out.sum()
+    assert np.abs(affine_points(p, A) - centre).max() < 0.02  # px (bilinear resampling of a 3 px blob)
 
 
 def test_training_with_blurred_copies_keeps_the_shape_model(synth_data):

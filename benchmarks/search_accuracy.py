@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from aamtrack.io.dataset import find_pairs, load_pair
-from aamtrack.metrics import nme
+from aamtrack.metrics import PIXEL_ORIGIN, nme
 from aamtrack.model import load_model
 from aamtrack.imaging import to_gray32
 from aamtrack.search import Searcher
@@ -45,6 +45,7 @@ def evaluate(model_path: Path, data: Path, *, limit: int | None = None, seed: in
     before, after, times = [], [], []
     for img_path, pts_path in pairs:
         img, pts = load_pair(img_path, pts_path)
+        pts = pts - PIXEL_ORIGIN  # the search works in OpenCV's pixels (``train_model``); the labels are 1-based
         gt = fit_landmarks(sm, pts)
         face_px = np.ptp(pts[:, 0])
         q0 = displaced_start(gt.q, face_px, rng)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import Delaunay
 
+from aamtrack.metrics import PIXEL_ORIGIN
+
 
 def face_layout() -> np.ndarray:
     """(68, 2) a face-like landmark layout in model units (x right, y up, width about 1)."""
@@ -77,7 +79,9 @@ def render(ref: np.ndarray, pts_img: np.ndarray, size: tuple[int, int], *, backg
 
 def random_faces(n: int, rng: np.random.Generator, *, size=(160, 160), scale=90.0, shape_sd=0.015,
                  roll_sd=0.08, shift_sd=6.0) -> tuple[list[np.ndarray], np.ndarray]:
-    """n rendered faces with random similarity pose and small smooth shape changes; (images, (n, 68, 2) pts)."""
+    """n rendered faces with random similarity pose and small smooth shape changes; (images, (n, 68, 2) pts). The
+    points are labels in the package's 1-based pixels (``PIXEL_ORIGIN`` added to where the renderer, in OpenCV's
+    pixels, put them), as 300-W's are."""
     ref = face_layout()
     images, points = [], []
     for _ in range(n):
@@ -85,13 +89,14 @@ def random_faces(n: int, rng: np.random.Generator, *, size=(160, 160), scale=90.
         pts = project2d(shape, rng.normal(0, roll_sd), scale * np.exp(rng.normal(0, 0.05)),
                         size[0] / 2 + rng.normal(0, shift_sd), size[1] / 2 + rng.normal(0, shift_sd))
         images.append(render(shape, pts, size, noise=2.0, rng=rng))
-        points.append(pts)
+        points.append(pts + PIXEL_ORIGIN)
     return images, np.array(points)
 
 
 def moving_face_frames(n: int, *, size=(320, 240), scale=130.0, amplitude=10.0, away=()) -> tuple[list, np.ndarray]:
     """n BGR frames of the mean face moving smoothly (translation up to ``amplitude`` px, roll up to 4 degrees);
-    frames whose index is in ``away`` show no face. Returns (frames, (n, 68, 2) true landmarks, NaN when away)."""
+    frames whose index is in ``away`` show no face. Returns (frames, (n, 68, 2) true landmarks in the package's 1-based
+    pixels, NaN when away)."""
     ref = face_layout()
     frames, truth = [], np.full((n, 68, 2), np.nan)
     for i in range(n):
@@ -101,7 +106,7 @@ def moving_face_frames(n: int, *, size=(320, 240), scale=130.0, amplitude=10.0, 
             t = 2 * np.pi * i / max(n, 1)
             pts = project2d(ref, np.radians(4) * np.sin(t), scale * (1 + 0.03 * np.sin(2 * t)),
                             size[0] / 2 + amplitude * np.sin(t), size[1] / 2 + 0.6 * amplitude * np.cos(t))
-            truth[i] = pts
+            truth[i] = pts + PIXEL_ORIGIN
         g = render(ref, pts, size)
         frames.append(np.dstack([g, g, g]))
     return frames, truth

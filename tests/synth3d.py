@@ -11,6 +11,7 @@ from scipy.spatial import Delaunay
 from aamtrack.mesh.candide import Candide
 from aamtrack.mesh.candide_model import FRONTAL_SHAPE_UNITS, candide_shape_model
 from aamtrack.mesh.landmarks import CANDIDE_ANCHORS, candide_landmark_map
+from aamtrack.metrics import PIXEL_ORIGIN
 import synth
 
 
@@ -60,7 +61,8 @@ def shape_model(candide: Candide):
 def posed_faces(candide: Candide, n: int, rng: np.random.Generator, *, size=(220, 220), scale=130.0,
                 yaw_sd=0.15, pitch_sd=0.1, shape_sd=0.7, observable=None):
     """n faces rendered from the synthetic 3D face with random pose (yaw, pitch, roll, scale, position) and shape
-    units: (images, (n, 68, 2) landmarks, (n, n_q) poses, (n, n_shape) shape units)."""
+    units: (images, (n, 68, 2) landmarks (labels, in the package's 1-based pixels), (n, n_q) poses (the model's own
+    OpenCV pixels, as a search returns them), (n, n_shape) shape units)."""
     sm = shape_model(candide)
     names = list(sm.shape_names)
     units = range(sm.n_shape) if observable is None else [names.index(u) for u in observable]
@@ -74,7 +76,7 @@ def posed_faces(candide: Candide, n: int, rng: np.random.Generator, *, size=(220
                  size[0] / 2 + rng.normal(0, 4), size[1] / 2 + rng.normal(0, 4))
         pts = sm.landmarks(q, sigma)
         images.append(synth.render(synth.face_layout(), pts, size, noise=2.0, rng=rng))
-        points.append(pts)
+        points.append(pts + PIXEL_ORIGIN)
         qs.append(q)
         sigmas.append(sigma)
     return images, np.array(points), np.array(qs), np.array(sigmas)

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from ..mesh.shape_model import rotation_matrix
+from ..metrics import PIXEL_ORIGIN
 
 from ..errors import OutputError
 from .atomic import TemporaryOutput, check_replaceable, discard_temporary
@@ -88,8 +89,9 @@ def _text_scale(image: np.ndarray) -> float:
 
 def _draw_face(image: np.ndarray, result, edges) -> None:
     scale = 1 << _SHIFT
+    # results are in the package's 1-based pixels (metrics.PIXEL_ORIGIN); OpenCV draws at 0-based ones
     if edges is not None and result.vertices is not None and len(edges):
-        vertices = np.asarray(result.vertices, dtype=np.float64)
+        vertices = np.asarray(result.vertices, dtype=np.float64) - PIXEL_ORIGIN
         if edges.max() < len(vertices):
             segments = vertices[edges]  # (n_edges, 2, 2)
             segments = segments[np.isfinite(segments).all(axis=(1, 2))]
@@ -99,7 +101,7 @@ def _draw_face(image: np.ndarray, result, edges) -> None:
                               1, cv2.LINE_AA, _SHIFT)
         else:
             logger.debug("frame %d: triangles index past %d vertices, mesh not drawn", result.frame, len(vertices))
-    landmarks = np.asarray(result.landmarks, dtype=np.float64)
+    landmarks = np.asarray(result.landmarks, dtype=np.float64) - PIXEL_ORIGIN
     for x, y in landmarks[np.isfinite(landmarks).all(axis=1)]:
         cv2.circle(image, (int(round(x * scale)), int(round(y * scale))), 2 * scale, _POINT_COLOR, -1,
                    cv2.LINE_AA, _SHIFT)

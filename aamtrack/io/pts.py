@@ -11,17 +11,18 @@ The standard form, as in the 300-W / 300-VW annotations::
 
 Pixel convention (the one statement of it for the package): the 300-W markup, and so every ``.pts`` file
 aamtrack reads or writes, is 1-based, Matlab-style: the centre of the top-left pixel is (1, 1), where OpenCV's
-is (0, 0). aamtrack applies no shift anywhere: :func:`read_pts` returns coordinates exactly as written,
-:func:`write_pts` writes them exactly as given, and every landmark position in between (training, the
-tracker's results, the CSV columns, ``run --pts``) is in this same convention, because the models learn their
-textures at the annotated coordinates. A ``.pts`` file written by ``run --pts`` therefore overlays the image
-exactly as a 300-W annotation does. (Checked on cap12 with the shipped 3D model: its points sit +0.19, -0.17 px
-from the dlib reference on average, and shifting them by -1 px raised the NME against dlib from 0.0471 to
-0.0488; so the benchmarks compare with the peers unshifted too.) Code that moves points with an image (a mirror,
-a resize, a rotation made with OpenCV, whose pixel centres are at integers) goes through OpenCV's convention:
-subtract ``aamtrack.metrics.PIXEL_ORIGIN`` (1), transform, add it back. Mirroring as ``w - 1 - x`` on these points, as training's
-mirrored copies once did, put every mirrored label 2 px to the left of its face (0.017 of helen's eye distance):
-a model learning from both sides then splits the difference and errs by 1 px on every unmirrored face.
+is (0, 0) (``aamtrack.metrics.PIXEL_ORIGIN`` = 1). Every landmark position a user gives or gets is in this
+convention: :func:`read_pts` returns coordinates exactly as written, :func:`write_pts` writes them exactly as
+given, training takes them so, and the tracker's results (landmarks, mesh vertices, pose translation, the CSV
+columns, ``run --pts``) come out so; a ``.pts`` file written by ``run --pts`` overlays the image exactly as a
+300-W annotation does. Inside, a model works in OpenCV's pixels, where its images are resampled and warped:
+``train.pipeline.train_model`` moves the labels by -1 on the way in and ``Tracker._result`` moves the results by
++1 on the way out (the overlay draws them at -1 again). Until 2026-11-26 models learned the 1-based labels as they
+were, so they learned the 1-pixel offset in face units at the training faces' size and scaled it with every face
+(0.27 px at 30 px between the eyes); and training mirrored the labels as ``w - 1 - x``, which put every mirrored
+label 2 px left of its face and the models 1 px left of every unmirrored one. Code that moves points with an
+image (a mirror, a resize, a rotation made with OpenCV) goes through OpenCV's convention: subtract the origin,
+transform, add it back (``mesh.landmarks.mirror_points``, ``mesh.landmarks.affine_points``).
 """
 
 from __future__ import annotations

@@ -34,12 +34,13 @@ IBUG_MIRROR = np.array(list(range(16, -1, -1)) + list(range(26, 16, -1)) + [27, 
                        + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55] + [64, 63, 62, 61, 60, 67, 66, 65])
 
 
-def mirror_points(points: np.ndarray, width: int) -> np.ndarray:
-    """(..., 68, 2) landmarks of the horizontally mirrored image (``width`` pixels wide; points in the package's
-    pixel convention, ``metrics.PIXEL_ORIGIN``: x -> width - 1 + 2 origin - x, so x -> width + 1 - x for 300-W's
-    1-based points), and left and right points swap names."""
+def mirror_points(points: np.ndarray, width: int, *, origin: float = PIXEL_ORIGIN) -> np.ndarray:
+    """(..., 68, 2) landmarks of the horizontally mirrored image (``width`` pixels wide; ``origin`` the coordinate
+    of the top-left pixel's centre: x -> width - 1 + 2 origin - x, so x -> width + 1 - x for the package's 1-based
+    points, ``metrics.PIXEL_ORIGIN``, and width - 1 - x for OpenCV's, as training uses inside), and left and right
+    points swap names."""
     out = np.asarray(points, float)[..., IBUG_MIRROR, :].copy()
-    out[..., 0] = width - 1 + 2.0 * PIXEL_ORIGIN - out[..., 0]
+    out[..., 0] = width - 1 + 2.0 * origin - out[..., 0]
     return out
 
 

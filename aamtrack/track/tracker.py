@@ -19,6 +19,7 @@ from ..detector import HaarDetector, guess_points, unturn
 from ..imaging import thumbnail, to_gray32
 from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import similarity_fit
+from ..metrics import PIXEL_ORIGIN
 from ..mesh.shape_model import N_POSE, initial_pose
 from ..model import Model
 from ..search import Searcher
@@ -351,13 +352,14 @@ class Tracker:
         sm = self.model.shape
         q, sigma = res.p[:sm.n_q], res.p[sm.n_q:]
         is3d = sm.kind == "3d"
+        o = PIXEL_ORIGIN  # the search works in OpenCV's pixels; results are in the package's 1-based ones
         return FrameResult(
             frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
-            landmarks=res.landmarks, landmarks3d=sm.landmarks3d(q, sigma) * self.mm_per_unit if is3d else None,
-            rotation=q[:3].copy(), translation=q[4:6].copy(), scale=float(q[3]),
+            landmarks=res.landmarks + o, landmarks3d=sm.landmarks3d(q, sigma) * self.mm_per_unit if is3d else None,
+            rotation=q[:3].copy(), translation=q[4:6] + o, scale=float(q[3]),
             anim_params=q[N_POSE:].copy() if is3d else np.zeros(0),
             shape_params=sigma.copy() if is3d else q[N_POSE:].copy(),
-            vertices=res.vertices, timings=timings)
+            vertices=res.vertices + o, timings=timings)
 
     # -- a video ---------------------------------------------------------------------------------------
     def track(self, frames: Iterable) -> Iterator[FrameResult]:

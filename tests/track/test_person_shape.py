@@ -4,6 +4,7 @@ the true landmarks than one held to the mean person."""
 import numpy as np
 
 from aamtrack.imaging import to_gray32
+from aamtrack.metrics import PIXEL_ORIGIN
 from aamtrack.search import Searcher
 from aamtrack.train.shape_fit import fit_landmarks
 from conftest import SEED
@@ -25,6 +26,7 @@ def test_person_search_moves_towards_the_true_shape(synth_model3d):
     gains, befores = [], []
     images, points, _, _ = synth3d.posed_faces(candide, 6, rng, yaw_sd=0.0, pitch_sd=0.0,
                                                observable=OBSERVABLE)  # new faces, each its own sigma
+    points = points - PIXEL_ORIGIN  # labels are 1-based; the search works in OpenCV's pixels
     for img, pts in zip(images, points):
         truth = fit_landmarks(sm, pts)  # the model's own best description of the face
         p0 = np.r_[truth.q, np.zeros(sm.n_shape)]

@@ -7,6 +7,7 @@ import pytest
 
 from aamtrack.imaging import to_gray32
 from aamtrack.io.frames import open_frames
+from aamtrack.metrics import PIXEL_ORIGIN
 from aamtrack.search import Searcher
 from aamtrack.track.tracker import Tracker
 from aamtrack.train.shape_fit import fit_landmarks
@@ -21,6 +22,7 @@ def test_3d_search_recovers_displaced_starts(synth_model3d):
     searcher = Searcher(model)
     rng = np.random.default_rng(SEED + 3)
     images, points, _, _ = synth3d.posed_faces(candide, 8, rng)  # faces not seen in training
+    points = points - PIXEL_ORIGIN  # labels are 1-based; the search works in OpenCV's pixels
     before, after, floor = [], [], []
     for img, pts in zip(images, points):
         truth = fit_landmarks(sm, pts)  # the model's own best description (its mean person differs)

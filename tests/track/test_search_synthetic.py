@@ -3,6 +3,7 @@
 import numpy as np
 
 from aamtrack.imaging import to_gray32
+from aamtrack.metrics import PIXEL_ORIGIN
 from aamtrack.search import Searcher
 from aamtrack.train.shape_fit import fit_landmarks
 from conftest import SEED
@@ -12,6 +13,7 @@ import synth
 def test_search_recovers_true_landmarks(synth_model):
     rng = np.random.default_rng(SEED + 1)
     images, points = synth.random_faces(8, rng, size=(220, 220), scale=130.0)  # faces not seen in training
+    points = points - PIXEL_ORIGIN  # labels are 1-based; the search works in OpenCV's pixels
     searcher = Searcher(synth_model)
     sm = synth_model.shape
     before, after, floor = [], [], []

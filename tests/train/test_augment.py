@@ -16,7 +16,7 @@ def test_mirror_and_blurred_copies():
     gray, pts, parent = _augment(images, points, True, 0.5, rng=np.random.default_rng(SEED))
     assert len(gray) == len(pts) == len(parent) == 12 + 6  # originals, mirrors, half of those blurred
     assert np.array_equal(parent[:12], np.arange(12)) and set(parent[12:]) <= set(range(12))
-    assert np.allclose(pts[6:12], mirror_points(points, 160))  # mirrors renumbered (iBUG left/right)
+    assert np.allclose(pts[6:12], mirror_points(points, 160, origin=0.0))  # renumbered (iBUG left/right); OpenCV's pixels
     assert np.array_equal(gray[6], cv2.flip(gray[0], 1))
     for i in range(12, 18):
         j = parent[i]

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from aamtrack.imaging import to_gray32
+from aamtrack.metrics import PIXEL_ORIGIN
 from aamtrack.search import Searcher
 from aamtrack.train.pipeline import TrainConfig, train_model
 from aamtrack.train.shape_fit import fit_landmarks
@@ -24,6 +25,7 @@ def _displaced_errors(model, rng, shift):
     direction), 6 degrees of roll and 6% of scale, on 10 faces the model has not seen: the search's own points
     (the landmark cascade after it is left out, so the update matrices are what is compared)."""
     images, points = synth.random_faces(10, rng, size=(220, 220), scale=130.0)
+    points = points - PIXEL_ORIGIN  # labels are 1-based; the search works in OpenCV's pixels
     searcher = Searcher(model)
     sm = model.shape
     before, after = [], []
@@ -57,6 +59,7 @@ def test_validator_tells_faces_from_non_faces(synth_model):
     """Fits on synthetic faces score high, the same search on images without a face scores low."""
     rng = np.random.default_rng(SEED + 5)
     images, points = synth.random_faces(6, rng, size=(220, 220), scale=130.0)
+    points = points - PIXEL_ORIGIN  # labels are 1-based; the search works in OpenCV's pixels
     searcher = Searcher(synth_model)
     sm = synth_model.shape
     face, non_face = [], []

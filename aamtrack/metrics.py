@@ -53,6 +53,7 @@ __all__ = [
     "IBUG_RIGHT_EYE_OUTER",
     "MEDIAPIPE_TO_IBUG",
     "MEDIAPIPE_SUBSET",
+    "PIXEL_ORIGIN",
     "ced",
     "eye_distance",
     "jitter",
@@ -62,12 +63,12 @@ __all__ = [
     "still_frames",
 ]
 
-#: iBUG-68 outer eye corners (0-based): 36 on the image left (subject's right eye), 45 on the image right.
 #: The pixel coordinate of the centre of the top-left pixel in every landmark position aamtrack handles: 300-W's
 #: 1-based convention (``aamtrack.io.pts`` states it); OpenCV's is 0. Moving points with an image transformed by
 #: OpenCV: subtract it, transform, add it back.
 PIXEL_ORIGIN = 1.0
 
+#: iBUG-68 outer eye corners (0-based): 36 on the image left (subject's right eye), 45 on the image right.
 IBUG_RIGHT_EYE_OUTER = 36
 IBUG_LEFT_EYE_OUTER = 45
 

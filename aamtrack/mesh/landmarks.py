@@ -44,12 +44,12 @@ def mirror_points(points: np.ndarray, width: int, *, origin: float = PIXEL_ORIGI
     return out
 
 
-
 def affine_points(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """(..., 2) points (the package's pixel convention, ``metrics.PIXEL_ORIGIN``) moved with an image that a 2x3
     affine ``matrix`` maps as ``cv2.warpAffine`` does (OpenCV's convention: pixel centres at integers)."""
     A = np.asarray(matrix, np.float64)
     return (np.asarray(points, np.float64) - PIXEL_ORIGIN) @ A[:, :2].T + A[:, 2] + PIXEL_ORIGIN
+
 
 # Triangles of the eyeballs and pupils (Candide 3.1.4 added them last): they lie behind the eyelid surface
 # and are used for landmarks only where nothing else is under a point.

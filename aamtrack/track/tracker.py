@@ -19,8 +19,8 @@ from ..detector import HaarDetector, guess_points, unturn
 from ..imaging import thumbnail, to_gray32
 from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import similarity_fit
-from ..metrics import PIXEL_ORIGIN
 from ..mesh.shape_model import N_POSE, initial_pose
+from ..metrics import PIXEL_ORIGIN
 from ..model import Model
 from ..search import Searcher
 from ..result import FitResult, FrameResult

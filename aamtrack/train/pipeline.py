@@ -323,8 +323,8 @@ def _landmarks(sm: ShapeModel, basis: np.ndarray, P: np.ndarray) -> np.ndarray:
 def _augment(images, points, mirror: bool, blur_share: float = 0.0, blur_eye: tuple = (0.02, 0.06),
              rng: np.random.Generator | None = None):
     """Grey float32 images and points (OpenCV's pixels, as ``train_model`` holds them), plus their mirror images
-    when asked, plus Gaussian-blurred copies of a
-    random ``blur_share`` of those (sigma uniform in ``blur_eye`` times the outer eye-corner distance). Returns
+    when asked, plus Gaussian-blurred copies of a random ``blur_share`` of those (sigma uniform in ``blur_eye``
+    times the outer eye-corner distance). Returns
     (images, points, parent): ``parent[i]`` is the sharp image (original or mirror) entry i was made from, i for
     the sharp ones; the original image of entry i is ``parent[i] % len(images)``."""
     gray = [to_gray32(im) for im in images]

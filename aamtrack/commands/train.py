@@ -41,7 +41,21 @@ def register(sub) -> None:
                    "../shared/data/candide3/candide3.wfm next to the project, if present)")
     p.add_argument("--couples", help="couples as FACE_PX:TEX_WIDTH,... coarse to fine (default 32:20,64:32,128:48)")
     p.add_argument("--report", type=Path, help="write each image's shape-fit residual (px) to this CSV")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of training's random draws (default 0: the shipped models'); the same data and seed "
+                        "give the same model, array for array, and another seed shows how much a result owes to "
+                        "them")
     p.set_defaults(func=run)
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
 
 
 def _parse_couples(text: str | None) -> tuple:
@@ -92,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or default_out(args.kind)
     if out.is_dir():
         raise InputError(f"{display_name(out)}: is a folder, expected a model file name")
-    config = TrainConfig(couples=_parse_couples(args.couples))
+    config = TrainConfig(couples=_parse_couples(args.couples), seed=args.seed)
     pairs = find_pairs(args.data)
     # Output checks before the work: the model and the report are committed together at the end.
     outputs = OutputSet(out.parent)

@@ -33,6 +33,31 @@ def test_train_2d_writes_a_loadable_model(tmp_path, dataset, capsys):
     assert m.kind == "2d" and [c.face_px for c in m.couples] == [32.0, 64.0]
     assert len(report.read_text().splitlines()) == 13  # header + one row per image
     assert "trained 2d model on 12 images" in capsys.readouterr().out
+    assert m.config["seed"] == 0  # the default, the shipped models'
+
+
+def test_seed_is_recorded_and_changes_the_draws(tmp_path, dataset, capsys):
+    out = tmp_path / "m7.npz"
+    code = main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(out), "--couples", "32:16,64:24",
+                 "--seed", "7"])
+    assert code == 0
+    m7 = load_model(out)
+    assert m7.config["seed"] == 7
+    assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(tmp_path / "m0.npz"),
+                 "--couples", "32:16,64:24"]) == 0
+    m0 = load_model(tmp_path / "m0.npz")
+    # the shape model does not depend on the draws; the learned updates do
+    np.testing.assert_array_equal(m7.shape.mean, m0.shape.mean)
+    assert not np.array_equal(m7.couples[-1].cascade, m0.couples[-1].cascade)
+
+
+@pytest.mark.parametrize("seed", ["-1", "x"])
+def test_bad_seed(tmp_path, dataset, capsys, seed):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(tmp_path / "m.npz"), "--seed", seed])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--seed" in err and "whole number" in err
 
 
 def _one_line_error(capsys, *needles):

@@ -41,7 +41,7 @@ x to w + 1 - x. The JSON also gives ``bias_px``, the mean signed (x, y) error ov
 tracker shares with its training labels stays the same under a mirror, while a pixel-convention slip turns
 around. Until 2026-11-26 this script, and training's mirrored copies, mirrored as w - 1 - x (OpenCV's convention
 on 1-based points): the mirrored references sat 2 px left of their faces, and the models, learning from both
-sides, 1 px right of every unmirrored face (shipped 3D model, helen_test: mean x error -1.4 px clean, +3.4 px
+sides, 1 px left of every unmirrored face (shipped 3D model, helen_test: mean x error -1.4 px clean, +3.4 px
 mirrored; after the fix and a retrain: see benchmarks/README.md).
 The clean variant always runs (the differences need it).
 ``--limit N`` takes the first N video frames and the first N stills, for a quick look.

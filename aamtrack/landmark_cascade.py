@@ -5,18 +5,22 @@ held-out faces that stops short of the labels (its linear updates underfit, and 
 labelled shape). This stage moves the 68 points themselves, as supervised descent does (Xiong & De la Torre,
 CVPR 2013: a cascade of linear regressions from SIFT at the current points to the remaining displacement):
 
-    x <- x + (R_k phi(I, x) + b_k) @ M(x),  k = 1..K
+    x <- x + (R_k phi(I, x) + S_k s(x) + b_k) @ M(x),  k = 1..K
 
 phi: the orientation histograms of a patch around each point (``aamtrack._kernels.patches``), sampled in the
 face's frame; M(x) = s R: the similarity that takes the reference shape (centred, outer eye corners 1 apart and
-level) to the current points, so R_k learns displacements in face units whatever the face's size and roll. Stage
-k+1 is learned on the points as stage k left them (``aamtrack.train.landmarks``). The patches are read from the
+level) to the current points, so R_k learns displacements in face units whatever the face's size and roll.
+s(x) = (x - centroid) M^-1 - ref: the points' own shape in that frame (``shape_features``), so a stage can also
+learn what a shape says of itself (where a jaw lies given the eyes, nose and mouth), which local descriptors
+cannot see (S_k is zero for stages learned without it). Stage k+1 is learned on the points as stage k left them
+(``aamtrack.train.landmarks``). The patches are read from the
 grey image at the finest couple's resolution (the face about ``face_px`` wide), which the search has made.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -67,6 +71,12 @@ def descriptors(spec: DescriptorSpec, image: np.ndarray, scale: float, pts: np.n
     return out.reshape(-1)
 
 
+def shape_features(ref: np.ndarray, pts: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """(2 L,) the points pts (L, 2) in the reference frame, as their departure from ref (L, 2): (pts - centroid)
+    M^-1 - ref, (x_0, y_0, x_1, ...); M the similarity of ``similarity_to(ref, pts)``."""
+    return ((pts - pts.mean(0)) @ np.linalg.inv(M) - ref).reshape(-1)
+
+
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:
     """(..., n_points d) each point's descriptor of phi (..., n_points * p) projected on a basis (p, d) about its
     mean (p,)."""
@@ -80,8 +90,9 @@ class LandmarkCascade:
     """ref (68, 2) float64: the reference shape (centred, outer eye corners 1 apart, level). halves (K,): each
     stage's patch half side (outer eye-corner distances). basis_mean (K, spec.size) and basis (K, spec.size, d)
     float32: each stage's principal components of a point's descriptor (the regressors read d numbers per point:
-    a quarter to a half of the weights, which are read from memory every frame). regressors (K, 136, 68 d)
-    float32 and biases (K, 136) float64: stage k's displacement (x_0, y_0, x_1, ...) in reference units."""
+    a quarter to a half of the weights, which are read from memory every frame). regressors (K, 136, 68 d),
+    shape_regressors (K, 136, 136) float32 (``shape_features``; zero for a stage that does not read the shape) and
+    biases (K, 136) float64: stage k's displacement (x_0, y_0, x_1, ...) in reference units."""
 
     ref: np.ndarray
     spec: DescriptorSpec
@@ -90,42 +101,57 @@ class LandmarkCascade:
     basis: np.ndarray
     regressors: np.ndarray
     biases: np.ndarray
+    shape_regressors: np.ndarray
 
     @property
     def n_stages(self) -> int:
         return len(self.halves)
+
+    @cached_property
+    def shape_from(self) -> int:
+        """The first stage that reads the points' shape (``n_stages`` when none does)."""
+        used = np.flatnonzero(np.abs(self.shape_regressors).reshape(self.n_stages, -1).max(1) > 0)
+        return int(used[0]) if len(used) else self.n_stages
 
     def apply(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> np.ndarray:
         """(68, 2) the points pts (68, 2) (frame pixels) moved by stages ``first``.. (all by default), on
         ``image`` (the grey frame resampled by ``scale``); ``run``'s points."""
         return self.run(image, scale, pts, first)[0]
 
-    def run(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, image: np.ndarray, scale: float, pts: np.ndarray,
+            first: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``apply`` in one compiled call (``kernels.landmark_cascade``; ``run_slow`` is the same in numpy steps).
-        Returns (points (68, 2), z (68 d,) float32): z the last stage's projected descriptors, read at the points
-        just before its update (within about 0.01 eye distances of the final ones), what the landmark validator
-        weighs (``model.Validator``): what the face looks like around each point, at no extra cost."""
+        Returns (points (68, 2), z (68 d,) float32, prior (68, 2)): z the last stage's projected descriptors, read
+        at the points just before its update (within about 0.01 eye distances of the final ones), what the
+        landmark validator weighs (``model.Validator``): what the face looks like around each point, at no extra
+        cost; prior the part of the points' move that the stages' shape term made (S_k s(x), in pixels)."""
         sp = self.spec
         x = np.array(pts, dtype=np.float64)
         k = slice(first, None)
+        prior = np.empty_like(x)
         z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
-                             self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k], cells=sp.cells,
+                             self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k],
+                             self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
-                             feat=np.empty((len(x), sp.size), np.float32))
-        return x, z.reshape(-1)
+                             feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
+                             prior=prior)
+        return x, z.reshape(-1), prior
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
         """``apply`` stage by stage in numpy (what training does; the compiled ``apply`` is tested against it)."""
         return self.run_slow(image, scale, pts)[0]
 
-    def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``run`` (all stages) stage by stage in numpy."""
         x = np.array(pts, dtype=np.float64)
         buf = np.empty((len(x), self.spec.size), np.float32)
+        prior = np.zeros_like(x)
         z = None
         for k, half in enumerate(self.halves):
             M, _ = similarity_to(self.ref, x)
             z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf), self.basis_mean[k],
                                     self.basis[k])
-            x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M
-        return x, z.reshape(-1)
+            ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
+            prior += ds
+            x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds
+        return x, z.reshape(-1), prior

@@ -30,8 +30,9 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 5  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
-# the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points
+FORMAT_VERSION = 6  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+# the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
+# 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -153,6 +154,7 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays["landmarks/ref"], arrays["landmarks/regressors"], arrays["landmarks/biases"] = \
             lc.ref, lc.regressors.astype(np.float16), lc.biases
         arrays["landmarks/basis_mean"], arrays["landmarks/basis"] = lc.basis_mean, lc.basis
+        arrays["landmarks/shape_regressors"] = lc.shape_regressors.astype(np.float16)
     lv = model.landmark_validator
     if lv is not None:
         arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
@@ -409,7 +411,8 @@ def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
     return LandmarkCascade(c.array("landmarks/ref", np.float64, (N_LANDMARKS, 2)), ds, halves,
                            c.array("landmarks/basis_mean", np.float32, (K, ds.size)), basis,
                            c.array("landmarks/regressors", np.float32, (K, 2 * N_LANDMARKS, N_LANDMARKS * d)),
-                           c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)))
+                           c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)),
+                           c.array("landmarks/shape_regressors", np.float32, (K, 2 * N_LANDMARKS, 2 * N_LANDMARKS)))
 
 
 __all__ = ["FORMAT_VERSION", "N_POSE", "STAT_NAMES", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

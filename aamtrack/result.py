@@ -23,6 +23,9 @@ class FitResult:
     iterations : tuple of int -- iterations (cascade stages) run per couple, coarse to fine
     stats : tuple of float -- the fit statistics the validator reads (``aamtrack.model.STAT_NAMES``)
     confidence : float -- 0..1, the model's validator on ``stats``: how likely the fit is on a face
+    landmark_prior : (68, 2) float64 or None -- the part of the landmark cascade's move of the points that its
+        stages' shape term made (``LandmarkCascade.run``): what the points' shape says of itself rather than the
+        image; None before the cascade
     """
 
     p: np.ndarray
@@ -32,6 +35,7 @@ class FitResult:
     iterations: tuple = ()
     stats: tuple = ()
     confidence: float = 0.0
+    landmark_prior: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

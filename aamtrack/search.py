@@ -130,10 +130,10 @@ class Searcher:
             r = self.factors(res.p)[-1]
         first = max(0, lc.n_stages - last) if last > 0 else 0
         img = levels.resampled(r)
-        pts, z = lc.run(img, r, res.landmarks, first)
+        pts, z, prior = lc.run(img, r, res.landmarks, first)
         lv = self.model.landmark_validator
         conf = res.confidence if lv is None else lv(res.stats, z)
-        return replace(res, landmarks=pts, confidence=conf)
+        return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior)
 
     def project(self, p: np.ndarray) -> np.ndarray:
         """(n_vertices, 2) image pixels of the search vector p."""

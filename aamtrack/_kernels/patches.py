@@ -163,17 +163,21 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
 
 
 @numba.njit(**NJIT)
+def _centroid(pts):
+    mx = 0.0
+    my = 0.0
+    for li in range(pts.shape[0]):
+        mx += pts[li, 0]
+        my += pts[li, 1]
+    return mx / pts.shape[0], my / pts.shape[0]
+
+
+@numba.njit(**NJIT)
 def _similarity(pts, ref, n2):
     """(a, c) of the least-squares similarity [[a, c], [-c, a]] taking the centred reference ref (L, 2) (squared
     norm n2) to pts (L, 2) about pts' centroid (``landmark_cascade.similarity_to`` in closed form)."""
     L = pts.shape[0]
-    mx = 0.0
-    my = 0.0
-    for li in range(L):
-        mx += pts[li, 0]
-        my += pts[li, 1]
-    mx /= L
-    my /= L
+    mx, my = _centroid(pts)
     a = 0.0
     c = 0.0
     for li in range(L):
@@ -193,18 +197,22 @@ def _squared_norm(ref):
 
 
 @numba.njit(**NJIT)
-def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, cells, cell, bins, floor, feat):
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, S, shape_from, cells, cell, bins,
+                      floor, feat, shape, prior):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
     2 halves[k] / (cells * cell + 1) reference units, each point's descriptor projected on the stage's basis
-    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + b[k]) @ M per point. Returns the last
-    stage's z (what the landmark validator weighs: the face around each point just before the last, smallest
-    update)."""
+    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point, where the
+    stages from ``shape_from`` on read the points' own shape in the reference frame (s = (pts - centroid) M^-1 -
+    ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2) float64 <- the sum of the (S[k] s) @ M
+    moves. Returns the last stage's z (what the landmark validator weighs: the face around each point just before
+    the last, smallest update)."""
     L = pts.shape[0]
     side = cells * cell
     n2 = _squared_norm(ref)
     z = np.zeros((L, basis.shape[2]), np.float32)
+    prior[:] = 0.0
     for k in range(halves.shape[0]):
         a, c = _similarity(pts, ref, n2)
         step = 2.0 * halves[k] / (side + 1)
@@ -212,9 +220,32 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
         d = np.dot(R[k], z.reshape(-1))
+        if k >= shape_from and _shape_in_frame(pts, ref, a, c, shape):
+            ds = np.dot(S[k], shape)
+            d += ds
+            for li in range(L):
+                prior[li, 0] += ds[2 * li] * a - ds[2 * li + 1] * c
+                prior[li, 1] += ds[2 * li] * c + ds[2 * li + 1] * a
         for li in range(L):
             ux = d[2 * li] + b[k, 2 * li]
             uy = d[2 * li + 1] + b[k, 2 * li + 1]
             pts[li, 0] += ux * a - uy * c
             pts[li, 1] += ux * c + uy * a
     return z
+
+
+@numba.njit(**NJIT)
+def _shape_in_frame(pts, ref, a, c, out):
+    """out (2 L,) float32 <- (pts - centroid) M^-1 - ref, M = [[a, c], [-c, a]] (``_similarity``): the points'
+    shape in the reference frame, as its departure from the reference (x_0, y_0, x_1, ...). Returns False (out
+    untouched) for a degenerate M."""
+    det = a * a + c * c
+    if not det > 0.0:
+        return False
+    mx, my = _centroid(pts)
+    for li in range(pts.shape[0]):
+        dx = pts[li, 0] - mx
+        dy = pts[li, 1] - my
+        out[2 * li] = (dx * a + dy * c) / det - ref[li, 0]
+        out[2 * li + 1] = (dy * a - dx * c) / det - ref[li, 1]
+    return True

@@ -89,6 +89,12 @@ class TrainConfig:
     landmark_halves: the landmark cascade's stages (``aamtrack.landmark_cascade``), each its patch half side in
     outer eye-corner distances; () for none. landmark_starts: made starts per training image (``train.landmarks``).
     landmark_pca: principal components kept of each point's descriptor (of cells^2 * bins = 72).
+    landmark_halves (0.35, 0.22, 0.14, 0.1) rather than (0.22, 0.16, 0.12, 0.1) (2026-11-26): the first stage's
+    larger patch brings the search's points back from farther, and the last stage then still moves them (ridge
+    3 instead of 30): on captured fits (/tmp harness) helen_test 0.0377 -> 0.0371, retrained 3D 0.0370 (0.0375
+    before, both without ``TrackerConfig.landmark_pass``), same cost.
+    landmark_shape_stages, landmark_shape_weight: the last this many stages of the landmark cascade also regress
+    on the points' own shape, at this weight against the descriptors (``train.landmarks``; 0 stages: none).
     landmark_blur_share: the landmark cascade also learns from Gaussian-blurred copies of this share of the
     (mirrored) training images (sigma drawn in ``landmark_blur_eye`` outer eye-corner distances), with their sharp
     images' labels, each starting from the search's own fit of the blurred copy from its Haar box (farther off
@@ -131,9 +137,11 @@ class TrainConfig:
     n_pca: int = 20
     n_corrective: int = 20
     validator_images: int = 600
-    landmark_halves: tuple = (0.22, 0.16, 0.12, 0.1)
+    landmark_halves: tuple = (0.35, 0.22, 0.14, 0.1)
     landmark_starts: int = 16
     landmark_pca: int = 48
+    landmark_shape_stages: int = 1
+    landmark_shape_weight: float = 3.0
     landmark_blur_share: float = 0.0
     landmark_blur_eye: tuple = (0.02, 0.07)
     landmark_validator: bool = True
@@ -475,7 +483,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     def add(levels, p0, truth):
         r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
         res = searcher.fit(levels, p0, landmarks=False)
-        pts, z = lc.run(levels.resampled(r), r, res.landmarks)  # as ``refine_landmarks`` runs it
+        pts, z, _ = lc.run(levels.resampled(r), r, res.landmarks)  # as ``refine_landmarks`` runs it
         if truth is not None:
             e = float(nme(pts, truth))
             if 0.06 <= e <= 0.10:  # neither clearly on the face nor clearly off it
@@ -635,6 +643,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         landmark_cascade, lmk_record = learn_landmark_cascade(
             lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,
             halves=tuple(config.landmark_halves), n_starts=config.landmark_starts, n_components=config.landmark_pca,
+            shape_stages=config.landmark_shape_stages, shape_weight=config.landmark_shape_weight,
             rng=np.random.default_rng(config.seed + 3), progress=progress)
     del fine_gray
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val

@@ -56,8 +56,9 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
     assert before.mean() > 0.08  # the starts really are off
     assert after.mean() < 0.45 * before.mean()  # and the cascade takes them more than half the way
     for g, s in zip(gray[test], starts):  # compiled against numpy steps, points and the validator's features
-        (x, z), (x_slow, z_slow) = cascade.run(g, 1.0, s), cascade.run_slow(g, 1.0, s)
+        (x, z, prior), (x_slow, z_slow, prior_slow) = cascade.run(g, 1.0, s), cascade.run_slow(g, 1.0, s)
         assert np.abs(x - x_slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
+        assert np.abs(prior - prior_slow).max() < 1e-3 and np.abs(prior).max() > 1e-3  # px, and it moved them
         assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
         assert np.array_equal(cascade.apply(g, 1.0, s), x)
 
@@ -79,3 +80,39 @@ def test_made_starts_carry_library_errors_in_the_face_frame():
         assert np.abs(moved[30] - expected).max() < 1e-9
         cos = moved[30] @ axis / (np.linalg.norm(moved[30]) * np.linalg.norm(axis))
         assert cos > 0.95  # along this face's own eye axis, whatever its roll
+
+
+def test_shape_features_are_the_points_in_the_reference_frame():
+    """``shape_features``: zero for the reference moved by any similarity; a deformation comes back in reference
+    units, undone of the face's roll, scale and position; the compiled cascade computes the same (a cascade whose
+    only weights read the shape moves points by exactly S s @ M)."""
+    from aamtrack.landmark_cascade import LandmarkCascade, shape_features
+
+    rng = np.random.default_rng(SEED)
+    _, pts = random_faces(4, rng, size=(120, 120), scale=60.0)
+    ref = reference_shape(pts)
+    a, s, t = 0.4, 80.0, np.array([60.0, 50.0])
+    M_true = s * np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    P = ref @ M_true + t
+    M, _ = similarity_to(ref, P)
+    assert np.abs(shape_features(ref, P, M)).max() < 1e-12
+    bump = np.zeros_like(ref)
+    bump[8] = [0.0, 0.05]  # the chin 0.05 eye distances down, in the face's frame
+    bump[0] = [-0.03, 0.0]
+    bump -= bump.mean(0)  # about the centroid, as the features are
+    Q = (ref + bump) @ M_true + t
+    M, _ = similarity_to(ref, Q)
+    feats = shape_features(ref, Q, M)
+    # the bump, in reference units whatever the face's roll and size (the similarity fitted to the bumped points
+    # absorbs a little of it)
+    assert np.abs(feats - bump.reshape(-1)).max() < 0.003
+    spec = DescriptorSpec(cells=2, cell=2, bins=4)
+    S = rng.normal(0, 0.1, (1, 136, 136)).astype(np.float32)
+    zero = LandmarkCascade(ref, spec, (0.2,), np.zeros((1, spec.size), np.float32),
+                           np.zeros((1, spec.size, 3), np.float32), np.zeros((1, 136, 68 * 3), np.float32),
+                           np.zeros((1, 136)), S)
+    image = np.zeros((120, 120), np.float32)
+    moved, _, prior = zero.run(image, 1.0, Q)
+    assert np.abs(moved - (Q + (S[0] @ feats).reshape(-1, 2) @ M)).max() < 1e-4  # px (float32 features)
+    assert np.abs(zero.apply_slow(image, 1.0, Q) - moved).max() < 1e-4
+    assert zero.shape_from == 0 and np.abs(prior - (moved - Q)).max() < 1e-4  # the whole move is the shape's

@@ -8,6 +8,7 @@ from aamtrack.result import FitResult
 from aamtrack.track.replay import realtime
 from aamtrack.track.tracker import Tracker, TrackerConfig
 import synth
+from conftest import SEED
 
 
 @pytest.fixture(scope="module")
@@ -195,7 +196,8 @@ def test_a_more_confident_turned_fit_replaces_the_upright_one(synth_model):
 
     ref = synth.face_layout()
     image = synth.render(ref, synth.project2d(ref, np.radians(15), 130, 160, 120), (320, 240))
-    on = UprightDoubted(synth_model, config=TrackerConfig(rescue=()))  # the moved boxes' fits are not marked
+    # the moved boxes' fits are not marked, and neither is the landmark pass's (it would replace the marked fit)
+    on = UprightDoubted(synth_model, config=TrackerConfig(rescue=(), landmark_pass=False))
     off = UprightDoubted(synth_model, config=dc_replace(on.config, turned_retry_below=0.0))
     turned_fit, _ = on.fit_detection(image, (on.detector.detect_all(image, 30.0)[0], 30.0))
     assert turned_fit.confidence > 0.001
@@ -276,7 +278,8 @@ def test_a_small_turned_box_does_not_replace_an_accepted_upright_fit(synth_model
         b[:, :2] += b[:, 2:] * (1.0 - size) / 2
         b[:, 2:] *= size
         return b
-    tracker = _turned_detector(UprightDoubted(synth_model), boxes_at)
+    # the landmark pass's fit is not marked: off, so that the marked fits are the ones compared
+    tracker = _turned_detector(UprightDoubted(synth_model, config=TrackerConfig(landmark_pass=False)), boxes_at)
     assert tracker.config.min_confidence <= 0.6 < tracker.config.turned_retry_below  # accepted, and doubted
     res, _ = tracker.detect_and_fit(image)
     assert res.confidence == (0.99 if turned_kept else 0.6)
@@ -569,3 +572,53 @@ def test_a_low_confidence_tracked_frame_is_searched_again_with_the_middle_couple
     print(f"finest only {off[1].confidence:.6f}, two couples {both[1].confidence:.6f}, rule on {on[1].confidence:.6f}")
     assert off[1].confidence != both[1].confidence  # the premise: the two searches differ here
     assert on[1].confidence == max(off[1].confidence, both[1].confidence)  # the more confident of the two searches
+
+
+@pytest.mark.parametrize("pass_conf, kept", [(1.0, "pass"), (0.51, "detection")])
+def test_the_landmark_pass_keeps_the_more_confident_fit(synth_model, pass_conf, kept):
+    """``TrackerConfig.landmark_pass``: a detection's fit is searched once more from its landmarks, and the
+    pass's fit replaces it only when at least as confident; off, there is no second search."""
+    from dataclasses import replace as dc_replace
+
+    calls, passed = [], []
+
+    class Marked(Tracker):
+        def search_from(self, image, start, shape_params=None, *, last=None):
+            res, t = super().search_from(image, start, shape_params, last=last)
+            calls.append(last)
+            passed.append(dc_replace(res, confidence=pass_conf))
+            return passed[-1], t
+
+    ref = synth.face_layout()
+    image = synth.render(ref, synth.project2d(ref, 0.0, 130, 160, 120), (320, 240))
+    on = Marked(synth_model)
+    det, _ = Marked(synth_model, config=dc_replace(on.config, landmark_pass=False)).detect_and_fit(image)
+    assert calls == []  # off: no second search
+    res, timings = on.detect_and_fit(image)
+    assert calls == [0]  # on: one more search, every landmark stage
+    assert 0.51 < det.confidence < 1.0  # the premise: the marked pass is the more confident only in the first case
+    if kept == "pass":
+        assert res is passed[0]
+    else:
+        assert res.confidence == det.confidence and np.array_equal(res.landmarks, det.landmarks)
+    assert timings["pyramid"] > 0.0 and timings["search"] > 0.0
+
+
+def test_the_landmark_pass_keeps_detections_near_a_pixel(synth_model3d):
+    """Detections of unseen synthetic 3D faces (``synth3d``, faces about 130 px wide) with the landmark pass
+    stay near a pixel of the truth, as without it."""
+    from dataclasses import replace as dc_replace
+
+    import synth3d
+
+    model, candide = synth_model3d
+    images, points, _, _ = synth3d.posed_faces(candide, 4, np.random.default_rng(SEED + 11))
+    err = {}
+    for on in (True, False):
+        tracker = Tracker(model, config=dc_replace(TrackerConfig(), landmark_pass=on))
+        res = [next(iter(tracker.track([synth_frame(0, img)]))) for img in images]
+        assert all(r.success for r in res)
+        err[on] = np.mean([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(res, points)])
+    print(f"mean px error: with the landmark pass {err[True]:.2f}, without {err[False]:.2f}")
+    assert err[True] < 1.5  # px: about a pixel on faces 130 px wide
+    assert err[True] < err[False] + 0.25  # px: the pass does not cost accuracy here

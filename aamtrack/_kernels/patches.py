@@ -163,21 +163,18 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
 
 
 @numba.njit(**NJIT)
-def _centroid(pts):
+def _similarity(pts, ref, n2):
+    """(a, c, mx, my): (a, c) of the least-squares similarity [[a, c], [-c, a]] taking the centred reference ref
+    (L, 2) (squared norm n2) to pts (L, 2) about pts' centroid (mx, my) (``landmark_cascade.similarity_to`` in
+    closed form)."""
+    L = pts.shape[0]
     mx = 0.0
     my = 0.0
-    for li in range(pts.shape[0]):
+    for li in range(L):
         mx += pts[li, 0]
         my += pts[li, 1]
-    return mx / pts.shape[0], my / pts.shape[0]
-
-
-@numba.njit(**NJIT)
-def _similarity(pts, ref, n2):
-    """(a, c) of the least-squares similarity [[a, c], [-c, a]] taking the centred reference ref (L, 2) (squared
-    norm n2) to pts (L, 2) about pts' centroid (``landmark_cascade.similarity_to`` in closed form)."""
-    L = pts.shape[0]
-    mx, my = _centroid(pts)
+    mx /= L
+    my /= L
     a = 0.0
     c = 0.0
     for li in range(L):
@@ -185,7 +182,7 @@ def _similarity(pts, ref, n2):
         dy = pts[li, 1] - my
         a += ref[li, 0] * dx + ref[li, 1] * dy
         c += ref[li, 0] * dy - ref[li, 1] * dx
-    return a / n2, c / n2
+    return a / n2, c / n2, mx, my
 
 
 @numba.njit(**NJIT)
@@ -214,13 +211,13 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
     z = np.zeros((L, basis.shape[2]), np.float32)
     prior[:] = 0.0
     for k in range(halves.shape[0]):
-        a, c = _similarity(pts, ref, n2)
+        a, c, mx, my = _similarity(pts, ref, n2)
         step = 2.0 * halves[k] / (side + 1)
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
         d = np.dot(R[k], z.reshape(-1))
-        if k >= shape_from and _shape_in_frame(pts, ref, a, c, shape):
+        if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)
             d += ds
             for li in range(L):
@@ -235,14 +232,13 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
 
 
 @numba.njit(**NJIT)
-def _shape_in_frame(pts, ref, a, c, out):
-    """out (2 L,) float32 <- (pts - centroid) M^-1 - ref, M = [[a, c], [-c, a]] (``_similarity``): the points'
-    shape in the reference frame, as its departure from the reference (x_0, y_0, x_1, ...). Returns False (out
-    untouched) for a degenerate M."""
+def _shape_in_frame(pts, ref, a, c, mx, my, out):
+    """out (2 L,) float32 <- (pts - (mx, my)) M^-1 - ref, M = [[a, c], [-c, a]] and (mx, my) the centroid
+    (``_similarity``): the points' shape in the reference frame, as its departure from the reference (x_0, y_0,
+    x_1, ...). Returns False (out untouched) for a degenerate M."""
     det = a * a + c * c
     if not det > 0.0:
         return False
-    mx, my = _centroid(pts)
     for li in range(pts.shape[0]):
         dx = pts[li, 0] - mx
         dy = pts[li, 1] - my

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from aamtrack.io.frames import open_frames
+from aamtrack.mesh.landmarks import affine_points
 from aamtrack.result import FitResult
 from aamtrack.track.replay import realtime
 from aamtrack.track.tracker import Tracker, TrackerConfig
@@ -236,7 +237,7 @@ def test_a_face_found_only_in_a_turned_frame_also_tries_the_other_turned_frames(
     H, W = photo.shape[:2]
     M = cv2.getRotationMatrix2D((W / 2, H / 2), 30.0, 1.0)
     image = cv2.warpAffine(photo, M, (W, H), borderMode=cv2.BORDER_REFLECT)
-    truth = pts @ M[:, :2].T + M[:, 2]
+    truth = affine_points(pts, M)  # the labels moved with the image
     model = load_model(default_model_path("3d"))
 
     def boxes_at(angle, found):
@@ -427,7 +428,7 @@ def test_tracking_a_still_face_keeps_the_detection_s_accuracy():
             A = np.array([[s, 0.0, 320.0 + 1.5 * i], [0.0, s, 240.0 + 0.5 * i]])
             A[:, 2] -= s * pts.mean(0)
             frames.append(cv2.warpAffine(photo, A, (640, 480), borderMode=cv2.BORDER_REFLECT))
-            refs.append(pts @ A[:, :2].T + A[:, 2])
+            refs.append(affine_points(pts, A))
         for name, tracker in (("new", new), ("old", old)):
             results = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
             if name == "new":

@@ -106,7 +106,13 @@ class TrackerConfig:
     also runs from the box moved by each (x shift, y shift, scale) (shifts in box widths, about the box's
     centre), all on one crop, and the most confident fit is kept (``Tracker.rescue``). Haar's box can sit on
     a face's forehead and hair under side light, where no start of the box itself reaches the face; () never
-    does. Costs about as much as one detection's fit, on frames where a box was found but its fit failed."""
+    does. Costs about as much as one detection's fit, on frames where a box was found but its fit failed.
+    more_boxes: a detection's fit still not accepted after ``rescue`` tries up to this many other boxes in turn
+    (``HaarDetector.more``: the upright search's smaller boxes, then searches after other equalisations and with
+    a second cascade) until one's fit is accepted, and keeps the most confident fit: under uneven light the
+    largest box is often not the face (helen_test lit from one side, 23 of 330 rejected after rescue). Costs a
+    detection's fit per box, on frames whose fits all failed (frames with no face at all, where Haar finds
+    nothing, cost only the searches); 0 never does."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7
@@ -131,6 +137,7 @@ class TrackerConfig:
     landmark_pass: bool = True
     rescue: tuple = ((0.0, 0.3, 1.0), (0.0, -0.3, 1.0), (0.3, 0.0, 1.0), (-0.3, 0.0, 1.0), (0.0, 0.3, 1.25),
                      (0.0, -0.3, 1.25), (0.3, 0.0, 1.25), (-0.3, 0.0, 1.25))
+    more_boxes: int = 3
 
     def __post_init__(self):
         if self.tracked_start not in TRACKED_STARTS:
@@ -234,7 +241,8 @@ class Tracker:
         face fitted upright at 0.88 lost to a 25 px "face" on a mark on its cheek, at 0.99), while a larger box is
         most often the face the upright frame missed (rolled stills: the upright box is then mostly a small
         patch, accepted at 0.6-0.8; requiring about equal sizes lost 4% of them). A fit still not accepted
-        then tries the moved boxes of ``rescue``. Returns (fit or None, timings)."""
+        then tries the moved boxes of ``rescue``, then other boxes (``more_boxes``). Returns (fit or None,
+        timings)."""
         t0 = time.perf_counter()
         found = self.detector.find(image)
         timings = {"detect": time.perf_counter() - t0}
@@ -263,6 +271,20 @@ class Tracker:
             t_pyr += t
             if alt.confidence > res.confidence:
                 res = alt
+        if res.confidence < self.config.min_confidence and self.config.more_boxes > 0:
+            boxes = self.detector.more(image, [found[0]] if found[1] == 0.0 else [])
+            for _ in range(self.config.more_boxes):
+                t2 = time.perf_counter()
+                box = next(boxes, None)
+                t_detect += time.perf_counter() - t2
+                if box is None:
+                    break
+                alt, t = self.fit_detection(image, (box, 0.0), shape_params)
+                t_pyr += t
+                if alt.confidence > res.confidence:
+                    res = alt
+                if res.confidence >= self.config.min_confidence:
+                    break
         if self.config.landmark_pass and res.confidence >= self.config.min_confidence:
             alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0)
             t_pyr += t

@@ -45,24 +45,81 @@ def test_unturn_inverts_the_turn():
     assert np.abs(unturn(pts @ M[:, :2].T + M[:, 2], 30.0, (80, 100)) - pts).max() < 1e-9
 
 
-@pytest.mark.parametrize("width,expected_widths", [(640, (320, 640, 320, 320)), (320, (320, 640, 320, 320))])
-def test_find_searches_upright_then_wider_then_turned(width, expected_widths):
+@pytest.mark.parametrize("width,expected_widths", [(640, (320, 640, 320, 320, 320, 320)),
+                                                   (320, (320, 640, 320, 320, 320, 320))])
+def test_find_searches_upright_then_wider_then_turned_then_uneven(width, expected_widths):
     """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it
-    after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), then turned
-    by +30 and -30 degrees."""
+    after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by
+    +30 and -30 degrees, then upright after local equalisation with each cascade (uneven light)."""
     from aamtrack import detector as det_module
 
     calls = []
 
     class Recording(HaarDetector):
         def detect_all(self, gray, angle=0.0, width=0, **kw):
-            calls.append((angle, width, kw.get("clipped", False)))
+            calls.append((angle, width, kw.get("equalize", "plain"), kw.get("cascade", 0)))
             return super().detect_all(gray, angle, width, **kw)
 
     assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
-    assert [w for _, w, _ in calls] == [w * det_module.DETECT_WIDTH // 320 for w in expected_widths]
-    assert [a for a, _, _ in calls] == [0.0] * (len(calls) - 2) + [30.0, -30.0]
-    assert [c for _, _, c in calls] == [False, True, False, False]
+    assert [c[1] for c in calls] == [w * det_module.DETECT_WIDTH // 320 for w in expected_widths]
+    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0]
+    assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "local"]
+    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 1]
+
+
+def test_unknown_equalisation_is_refused():
+    with pytest.raises(ValueError, match="equalize 'gamma'"):
+        HaarDetector().detect_all(np.zeros((60, 80), np.uint8), equalize="gamma")
+
+
+def test_overlap_of_boxes():
+    from aamtrack.detector import overlap
+
+    assert overlap((0, 0, 10, 10), (0, 0, 10, 10)) == pytest.approx(1.0)
+    assert overlap((0, 0, 10, 10), (5, 0, 10, 10)) == pytest.approx(50 / 150)  # half of each: 50 over 150
+    assert overlap((0, 0, 10, 10), (20, 20, 5, 5)) == 0.0
+    assert overlap((0, 0, 0, 0), (0, 0, 0, 0)) == 0.0  # empty boxes: no overlap, no division by zero
+
+
+def test_more_gives_each_face_once_and_skips_the_tried(face):
+    """Two synthetic faces side by side: ``more`` after the larger one was tried gives the smaller one (the plain
+    search's second box) and never a box on the tried face or the same face twice, although four searches find
+    them."""
+    img, pts = face
+    big = cv2.resize(img, None, fx=1.25, fy=1.25, interpolation=cv2.INTER_LINEAR)
+    frame = np.full((300, 720), int(np.median(img)), np.uint8)
+    frame[:, :400] = big[:300, :400]
+    frame[30:270, 400:720] = img
+    det = HaarDetector()
+    boxes = det.detect_all(frame, 0.0, 720)
+    assert len(boxes) >= 2  # the premise: both faces found, the larger first
+    tried = boxes[0]
+    given = list(det.more(frame, [tried]))
+    assert len(given) >= 1
+    small_centre = pts.mean(0) + [400, 30]
+    first = given[0]
+    assert abs(first[0] + first[2] / 2 - small_centre[0]) < 0.25 * first[2]  # the other face
+    from aamtrack.detector import overlap
+    assert all(overlap(b, tried) <= 0.3 for b in given)
+    assert all(overlap(a, b) <= 0.3 for i, a in enumerate(given) for b in given[i + 1:])
+
+
+def test_half_lit_face_is_found_after_local_equalisation(face):
+    """The synthetic face lit from one side (its left half at 0.15 of the light, a sharp edge through its centre,
+    as ``benchmarks/robustness.py``'s side light): no plain, clipped or turned search finds it (the premise);
+    ``find`` returns an upright box on it from the local equalisation's."""
+    img, pts = face
+    cx, w = pts[:, 0].mean(), np.ptp(pts[:, 0])
+    x = np.arange(img.shape[1], dtype=np.float64)
+    light = 0.15 + 0.85 / (1.0 + np.exp(-(x - cx) / (0.04 * w)))
+    dim = np.clip(np.rint(img * 1.3 * light[None, :]), 0, 255).astype(np.uint8)
+    det = HaarDetector()
+    assert len(det.detect_all(dim)) == 0 and len(det.detect_all(dim, 0.0, 640, equalize="clipped")) == 0
+    assert all(len(det.detect_all(dim, angle)) == 0 for angle in det.rolled)
+    found = det.find(dim)
+    assert found is not None and found[1] == 0.0
+    bx, by, bw, bh = found[0]
+    assert abs(bx + bw / 2 - cx) < 0.25 * bw and abs(by + bh / 2 - pts[:, 1].mean()) < 0.3 * bh
 
 
 def test_clipped_equalisation_keeps_a_small_patch_contrast():

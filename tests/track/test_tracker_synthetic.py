@@ -623,3 +623,44 @@ def test_the_landmark_pass_keeps_detections_near_a_pixel(synth_model3d):
     print(f"mean px error: with the landmark pass {err[True]:.2f}, without {err[False]:.2f}")
     assert err[True] < 1.5  # px: about a pixel on faces 130 px wide
     assert err[True] < err[False] + 0.25  # px: the pass does not cost accuracy here
+
+
+@pytest.mark.shared_data
+def test_a_rejected_largest_box_gives_way_to_other_boxes():
+    """A helen_test photo whose upright search finds only a box on the background (steered), turned frames
+    nothing: the box's fits (its starts and rescue's moved boxes) are rejected; ``more_boxes`` then tries the
+    boxes of the detector's other searches (``HaarDetector.more``), and the first of them, on the face, is
+    accepted. With ``more_boxes=0`` the frame stays rejected."""
+    from aamtrack.detector import DETECT_WIDTH
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.metrics import nme
+    from aamtrack.model import load_model
+    from aamtrack.models import default_model_path
+    from conftest import shared_path
+
+    img_path, pts_path = find_pairs(shared_path("300w", "helen_test"))[0]
+    image, truth = load_pair(img_path, pts_path)
+    W = image.shape[1]
+    model = load_model(default_model_path("3d"))
+
+    def boxes_at(angle, found, width, equalize):
+        if angle != 0.0:
+            return np.zeros((0, 4))
+        if (width or DETECT_WIDTH) == DETECT_WIDTH and equalize == "plain":
+            return np.array([[0.0, 0.0, 0.2 * W, 0.2 * W]])  # background in the corner
+        return found
+
+    from aamtrack.detector import HaarDetector
+
+    class Steered(HaarDetector):
+        def detect_all(self, gray, angle=0.0, width=0, **kw):
+            found = super().detect_all(gray, angle, width, **kw)
+            return boxes_at(angle, found, width, kw.get("equalize", "plain"))
+
+    results = {}
+    for n in (0, 3):
+        tracker = Tracker(model, config=TrackerConfig(more_boxes=n), detector=Steered())
+        results[n], _ = tracker.detect_and_fit(image)
+    assert results[0].confidence < tracker.config.min_confidence  # the corner's fits: rejected
+    assert results[3].confidence >= tracker.config.min_confidence
+    assert nme(results[3].landmarks, truth) < 0.08  # on the face

@@ -50,12 +50,14 @@ class HaarDetector:
         self.rolled = tuple(rolled)
 
     def detect_all(self, gray: np.ndarray, angle: float = 0.0, width: int = 0, *, equalize: str = "plain",
-                   cascade: int = 0) -> np.ndarray:
+                   cascade: int = 0, smallest: bool = False) -> np.ndarray:
         """(n, 4) float boxes (x, y, w, h), largest first, in the frame turned by ``angle`` degrees
         (counterclockwise on screen) about its centre (``unturn`` maps points back), searched at ``width``
         pixels wide at most (default ``DETECT_WIDTH``) by cascade ``cascade`` of ``CASCADES``, after histogram
         equalisation: ``equalize`` "plain" (``cv2.equalizeHist``), "clipped" (``equalize_clipped``) or "local"
-        (CLAHE, ``LOCAL_CLIP`` on ``LOCAL_TILES`` x ``LOCAL_TILES`` tiles)."""
+        (CLAHE, ``LOCAL_CLIP`` on ``LOCAL_TILES`` x ``LOCAL_TILES`` tiles). Boxes are at least
+        ``min_face_fraction`` of the searched image's shorter side, or, with ``smallest``, as small as the
+        cascade's own window."""
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
@@ -74,7 +76,7 @@ class HaarDetector:
             h, w = small.shape
             M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, 1.0)
             small = cv2.warpAffine(small, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        m = max(20, int(self.min_face_fraction * min(small.shape)))
+        m = 20 if smallest else max(20, int(self.min_face_fraction * min(small.shape)))
         boxes = self.cascades[cascade].detectMultiScale(small, scaleFactor=self.scale_factor,
                                                         minNeighbors=self.min_neighbors[cascade], minSize=(m, m))
         if len(boxes) == 0:
@@ -86,12 +88,14 @@ class HaarDetector:
         boxes = self.detect_all(gray)
         return boxes[0] if len(boxes) else None
 
-    def find(self, gray: np.ndarray) -> tuple[np.ndarray, float] | None:
-        """(box, angle): the largest upright face, else the largest upright one at up to twice the detection
-        width after clipped histogram equalisation (small faces), else the largest in the frame turned by each
-        of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points back), else the largest
-        upright one after local equalisation (``UNEVEN``: uneven light); None when there is none. A frame
-        without a face costs all of these searches.
+    def find(self, gray: np.ndarray, *, thorough: bool = True) -> tuple[np.ndarray, float] | None:
+        """(box, angle): the first box of these searches, in order: the largest upright face; the largest upright
+        one at up to twice the detection width after clipped histogram equalisation (small faces); the largest
+        in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
+        back); and, when ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
+        light), then the smallest faces (``SMALLEST_WIDTHS``). None when there is none: a frame without a face
+        costs all of these searches (the thorough ones most: 640x480, one core, a flat grey frame about 20 ms
+        without them, 60 ms with; a frame of dark sensor noise at 1920x1080 about 0.3 s and 1.7 s).
 
         The second search is for small faces, which a plain equalisation hides wherever a flat background fills
         most of the frame: its grey level takes most of the output range, and the face's contrast is squeezed
@@ -99,25 +103,32 @@ class HaarDetector:
         Haar finds 225 of 330 after equalisation, 311 without, 312 after the clipped one; twice the detection
         width: on cap12 shrunk the same way, 20 of 60 frames found against 0). The first search keeps the plain
         equalisation, which finds more overexposed faces (helen_test x2.2 clipped: 309 against 298)."""
-        tries = [(0.0, DETECT_WIDTH, "plain", 0), (0.0, 2 * DETECT_WIDTH, "clipped", 0)]
-        tries += [(angle, DETECT_WIDTH, "plain", 0) for angle in self.rolled]
-        tries += [(0.0, DETECT_WIDTH, equalize, cascade) for equalize, cascade in UNEVEN]
-        for angle, width, equalize, cascade in tries:
-            boxes = self.detect_all(gray, angle, width, equalize=equalize, cascade=cascade)
+        for angle, width, equalize, cascade, smallest in self._searches(gray.shape[1], thorough):
+            boxes = self.detect_all(gray, angle, width, equalize=equalize, cascade=cascade, smallest=smallest)
             if len(boxes):
                 return boxes[0], angle
         return None
 
+    def _searches(self, frame_width: int, thorough: bool = True) -> list:
+        """``find``'s searches (angle, width, equalisation, cascade, smallest) for a frame this wide."""
+        tries = [(0.0, DETECT_WIDTH, "plain", 0, False), (0.0, 2 * DETECT_WIDTH, "clipped", 0, False)]
+        tries += [(angle, DETECT_WIDTH, "plain", 0, False) for angle in self.rolled]
+        if not thorough:
+            return tries
+        tries += [(0.0, DETECT_WIDTH, equalize, cascade, False) for equalize, cascade in UNEVEN]
+        return tries + [(0.0, width, "clipped", 0, True) for width in smallest_widths(frame_width)]
+
     def more(self, gray: np.ndarray, tried=()) -> Iterator[np.ndarray]:
         """Upright boxes other than ``tried`` ((x, y, w, h) upright boxes whose fits failed), best guesses first:
-        the plain search's smaller boxes, then the largest two of the clipped search at twice the width and of
-        each ``UNEVEN`` search. A box overlapping one already given or tried by more than ``SAME_BOX``
+        the plain search's smaller boxes, then the largest two of each of ``find``'s other upright searches. A box overlapping one already given or tried by more than ``SAME_BOX``
         (intersection over union) is skipped. Each search runs only when the boxes before it are used up."""
         seen = [np.asarray(b, float) for b in tried]
-        searches = [(DETECT_WIDTH, "plain", 0, slice(1, 3)), (2 * DETECT_WIDTH, "clipped", 0, slice(0, 2))]
-        searches += [(DETECT_WIDTH, equalize, cascade, slice(0, 2)) for equalize, cascade in UNEVEN]
-        for width, equalize, cascade, which in searches:
-            for box in self.detect_all(gray, 0.0, width, equalize=equalize, cascade=cascade)[which]:
+        searches = [(width, equalize, cascade, smallest, slice(0, 2))
+                    for angle, width, equalize, cascade, smallest in self._searches(gray.shape[1]) if angle == 0.0]
+        searches[0] = searches[0][:4] + (slice(1, 3),)  # the first search's largest box is what ``find`` gave
+        for width, equalize, cascade, smallest, which in searches:
+            for box in self.detect_all(gray, 0.0, width, equalize=equalize, cascade=cascade,
+                                       smallest=smallest)[which]:
                 if all(overlap(box, other) <= SAME_BOX for other in seen):
                     seen.append(box)
                     yield box
@@ -131,6 +142,26 @@ class HaarDetector:
 # with both searches in ``find`` and ``more``: fitted within NME 0.08 of all 330, lit from one side 83.9% -> 93.6%,
 # overexposed 90.6% -> 92.1%, blurred 77.6% -> 79.4%, clean 97.6% -> 98.2% (benchmarks/robustness.py).
 UNEVEN = (("local", 0), ("local", 1))
+
+# Searches for the smallest faces, last: clipped equalisation, boxes down to the cascade's own window (20 px), at
+# twice and at four times the detection width, never wider than the frame. Haar's window is fixed in pixels and
+# the other searches run on the frame shrunk to 320 or 640 px wide with boxes of at least 8% of its height: a face
+# 40 px between the outer eye corners in a 1920x1080 frame is 7 px at 320 wide. helen_test faces shrunk to that
+# eye distance, centred in a grey frame (60 faces, found upright with the box on the face): 40 px in 1920x1080:
+# 10 -> 43; 30 px in 1920x1080: 0 -> 30, in 1280x720: 23 -> 44; 24 px in 1280x720: 4 -> 39; 16 px in 640x480:
+# 6 -> 30 (40 px in 640x480: 60 both).
+SMALLEST_WIDTHS = (2, 4)  # multiples of DETECT_WIDTH
+
+
+def smallest_widths(frame_width: int) -> list:
+    """The widths of the smallest-face searches for a frame this wide: each multiple of ``SMALLEST_WIDTHS``
+    times ``DETECT_WIDTH`` that the frame reaches, and the frame's own width when it lies between two."""
+    widths = []
+    for k in SMALLEST_WIDTHS:
+        width = min(k * DETECT_WIDTH, frame_width)
+        if width not in widths and (not widths or width > widths[-1]):
+            widths.append(width)
+    return widths
 
 
 def overlap(a, b) -> float:

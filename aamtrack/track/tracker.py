@@ -112,7 +112,13 @@ class TrackerConfig:
     a second cascade) until one's fit is accepted, and keeps the most confident fit: under uneven light the
     largest box is often not the face (helen_test lit from one side, 23 of 330 rejected after rescue). Costs a
     detection's fit per box, on frames whose fits all failed (frames with no face at all, where Haar finds
-    nothing, cost only the searches); 0 never does."""
+    nothing, cost only the searches); 0 never does.
+    thorough_every: while a video has no accepted face, the detector's costly searches (uneven light, the
+    smallest faces: ``HaarDetector.find``) and ``more_boxes`` run on the first frame of each loss (and of each
+    shot change while tracking) and then on every this many frames; the frames between run the quick searches only. A frame with no face
+    costs about 3 times as much with them (grey 640x480: 20 against 60 ms; at 1920x1080, cap12's background 85
+    against 390 ms, dark sensor noise 0.3 against 1.7 s, one core), so a long stretch without a face would crawl;
+    a small or side-lit face that comes into view is found within this many frames. 1: every frame."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7
@@ -138,6 +144,7 @@ class TrackerConfig:
     rescue: tuple = ((0.0, 0.3, 1.0), (0.0, -0.3, 1.0), (0.3, 0.0, 1.0), (-0.3, 0.0, 1.0), (0.0, 0.3, 1.25),
                      (0.0, -0.3, 1.25), (0.3, 0.0, 1.25), (-0.3, 0.0, 1.25))
     more_boxes: int = 3
+    thorough_every: int = 8
 
     def __post_init__(self):
         if self.tracked_start not in TRACKED_STARTS:
@@ -227,7 +234,8 @@ class Tracker:
             t_pyr += t_more
         return res, t_crop + t_pyr
 
-    def detect_and_fit(self, image: np.ndarray, shape_params=None) -> tuple[FitResult | None, dict]:
+    def detect_and_fit(self, image: np.ndarray, shape_params=None, *,
+                       thorough: bool = True) -> tuple[FitResult | None, dict]:
         """Find a face (``HaarDetector.find``) and fit it (``fit_detection``). When the face was found upright but
         its best fit's confidence stays below ``turned_retry_below``, the detector also looks in the frame turned
         by each of its ``rolled`` angles and the most confident of all the fits is kept: an upright Haar box on a
@@ -241,10 +249,11 @@ class Tracker:
         face fitted upright at 0.88 lost to a 25 px "face" on a mark on its cheek, at 0.99), while a larger box is
         most often the face the upright frame missed (rolled stills: the upright box is then mostly a small
         patch, accepted at 0.6-0.8; requiring about equal sizes lost 4% of them). A fit still not accepted
-        then tries the moved boxes of ``rescue``, then other boxes (``more_boxes``). Returns (fit or None,
-        timings)."""
+        then tries the moved boxes of ``rescue``, then other boxes (``more_boxes``). Without ``thorough`` the
+        detector's costly searches (``HaarDetector.find``) and the other boxes are left out
+        (``TrackerConfig.thorough_every``). Returns (fit or None, timings)."""
         t0 = time.perf_counter()
-        found = self.detector.find(image)
+        found = self.detector.find(image, thorough=thorough)
         timings = {"detect": time.perf_counter() - t0}
         if found is None:
             return None, timings
@@ -271,7 +280,7 @@ class Tracker:
             t_pyr += t
             if alt.confidence > res.confidence:
                 res = alt
-        if res.confidence < self.config.min_confidence and self.config.more_boxes > 0:
+        if res.confidence < self.config.min_confidence and self.config.more_boxes > 0 and thorough:
             boxes = self.detector.more(image, [found[0]] if found[1] == 0.0 else [])
             for _ in range(self.config.more_boxes):
                 t2 = time.perf_counter()
@@ -432,6 +441,7 @@ class Tracker:
         sigma_samples = []
         estimate = self.model.shape.n_shape > 0 and cfg.sigma_frames > 0
         thumb = None      # the previous frame's (shot changes)
+        misses = 0        # frames since the track was lost (or cut) without an accepted face
         for frame in frames:
             if getattr(frame, "dropped", False):
                 yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped")
@@ -446,12 +456,15 @@ class Tracker:
                 made = getattr(frame, "thumbnail", None)  # made ahead in the decoding thread (``grey_frames``)
                 before, thumb = thumb, thumbnail(image) if made is None else made
                 if before is not None and float((before * thumb).sum()) < cfg.cut_below:  # a new shot
-                    p = p_prev = None
+                    p = p_prev = None  # (while lost, a cut keeps the thorough searches' schedule: frames of
+                    # noise all look like cuts)
                     if cfg.sigma_per_shot:
                         shape_params, sigma_samples = None, []
             if p is None:
-                res, timings = self.detect_and_fit(image, shape_params)
+                thorough = misses % max(1, cfg.thorough_every) == 0
+                res, timings = self.detect_and_fit(image, shape_params, thorough=thorough)
                 if res is None:
+                    misses += 1
                     yield self._result(frame, "lost", None, timings, "no face detected")
                     continue
                 status = "detected"
@@ -472,7 +485,9 @@ class Tracker:
                         shape_params = np.median(sigma_samples, axis=0)
                 p_prev = p if status == "tracked" else None
                 p = self.tracked_start(res)
+                misses = 0
                 yield self._result(frame, status, res, timings)
             else:
+                misses = misses + 1 if status == "detected" else 0  # a tracked face just lost: thorough next
                 p = p_prev = None
                 yield self._result(frame, "lost", res, timings, reason)

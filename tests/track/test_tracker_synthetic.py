@@ -664,3 +664,61 @@ def test_a_rejected_largest_box_gives_way_to_other_boxes():
     assert results[0].confidence < tracker.config.min_confidence  # the corner's fits: rejected
     assert results[3].confidence >= tracker.config.min_confidence
     assert nme(results[3].landmarks, truth) < 0.08  # on the face
+
+
+class _SeenOnlyThoroughly:
+    """A Haar detector that sees the face only in its thorough searches (as a side-lit or very small face), and
+    records the ``thorough`` flag of every ``find``."""
+
+    def __init__(self):
+        from aamtrack.detector import HaarDetector
+
+        self.flags = []
+        inner = HaarDetector()
+
+        class Steered(HaarDetector):
+            def find(this, gray, *, thorough=True):
+                self.flags.append(thorough)
+                return inner.find(gray) if thorough else None
+
+        self.detector = Steered()
+
+
+@pytest.mark.parametrize("every, first_found", [(1, 5), (4, 8)])
+def test_lost_frames_run_the_thorough_searches_every_so_many_frames(synth_model, every, first_found):
+    """Five grey frames, then a face only the thorough searches see; shot changes off. The first lost frame
+    searches thoroughly, then every ``thorough_every``-th: with 1 the face is found on its first frame (5), with 4
+    on the next thorough frame (8); once found, no more detection."""
+    ref = synth.face_layout()
+    face = synth.render(ref, synth.project2d(ref, 0.0, 130, 160, 120), (320, 240))
+    frames = [np.full_like(face, 60)] * 5 + [face] * 6
+    seen = _SeenOnlyThoroughly()
+    cfg = TrackerConfig(thorough_every=every, cut_below=0)
+    results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
+        realtime_free(frames)))
+    assert [r.success for r in results] == [False] * first_found + [True] * (len(frames) - first_found)
+    assert seen.flags == [i % every == 0 for i in range(first_found + 1)]  # a find per frame until found
+
+
+def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
+    """A tracked face, then a cut to another view of it (40 px to the right: its thumbnail correlates below the
+    cut rule) that only the thorough searches see: the cut's detection is thorough, so the face is found on the
+    cut's frame; while lost, frames keep the schedule (``thorough_every``)."""
+    from aamtrack.imaging import thumbnail
+
+    ref = synth.face_layout()
+    face = synth.render(ref, synth.project2d(ref, 0.0, 130, 130, 120), (320, 240))
+    moved = np.roll(face, 40, axis=1)
+    assert float((thumbnail(face) * thumbnail(moved)).sum()) < TrackerConfig().cut_below  # the premise: a cut
+    seen = _SeenOnlyThoroughly()
+    results = list(Tracker(synth_model, config=TrackerConfig(thorough_every=4), detector=seen.detector).track(
+        realtime_free([face] * 3 + [moved] * 3)))
+    assert all(r.success for r in results)
+    assert [r.status for r in results] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]
+    assert seen.flags == [True, True]  # the first frame, and the cut
+
+
+def realtime_free(images):
+    from aamtrack.track.replay import ReplayFrame
+
+    return (ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images))

@@ -57,7 +57,7 @@ class HaarDetector:
         equalisation: ``equalize`` "plain" (``cv2.equalizeHist``), "clipped" (``equalize_clipped``) or "local"
         (CLAHE, ``LOCAL_CLIP`` on ``LOCAL_TILES`` x ``LOCAL_TILES`` tiles). Boxes are at least
         ``min_face_fraction`` of the searched image's shorter side, or, with ``smallest``, as small as the
-        cascade's own window."""
+        cascade's own window (``SMALLEST_BOX``)."""
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
@@ -76,7 +76,7 @@ class HaarDetector:
             h, w = small.shape
             M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, 1.0)
             small = cv2.warpAffine(small, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        m = 20 if smallest else max(20, int(self.min_face_fraction * min(small.shape)))
+        m = SMALLEST_BOX if smallest else max(SMALLEST_BOX, int(self.min_face_fraction * min(small.shape)))
         boxes = self.cascades[cascade].detectMultiScale(small, scaleFactor=self.scale_factor,
                                                         minNeighbors=self.min_neighbors[cascade], minSize=(m, m))
         if len(boxes) == 0:
@@ -94,8 +94,7 @@ class HaarDetector:
         in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
         back); and, when ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
         light), then the smallest faces (``SMALLEST_WIDTHS``). None when there is none: a frame without a face
-        costs all of these searches (the thorough ones most: 640x480, one core, a flat grey frame about 20 ms
-        without them, 60 ms with; a frame of dark sensor noise at 1920x1080 about 0.3 s and 1.7 s).
+        costs all of these searches, the thorough ones most (``TrackerConfig.thorough_every`` has the figures).
 
         The second search is for small faces, which a plain equalisation hides wherever a flat background fills
         most of the frame: its grey level takes most of the output range, and the face's contrast is squeezed
@@ -144,13 +143,17 @@ class HaarDetector:
 UNEVEN = (("local", 0), ("local", 1))
 
 # Searches for the smallest faces, last: clipped equalisation, boxes down to the cascade's own window (20 px), at
-# twice and at four times the detection width, never wider than the frame. Haar's window is fixed in pixels and
-# the other searches run on the frame shrunk to 320 or 640 px wide with boxes of at least 8% of its height: a face
-# 40 px between the outer eye corners in a 1920x1080 frame is 7 px at 320 wide. helen_test faces shrunk to that
-# eye distance, centred in a grey frame (60 faces, found upright with the box on the face): 40 px in 1920x1080:
-# 10 -> 43; 30 px in 1920x1080: 0 -> 30, in 1280x720: 23 -> 44; 24 px in 1280x720: 4 -> 39; 16 px in 640x480:
-# 6 -> 30 (40 px in 640x480: 60 both).
-SMALLEST_WIDTHS = (2, 4)  # multiples of DETECT_WIDTH
+# 2, 4 and 6 times the detection width, never wider than the frame. Haar's window is fixed in pixels and the other
+# searches run on the frame shrunk to 320 or 640 px wide with boxes of at least 8% of its height: a face 40 px
+# between the outer eye corners in a 1920x1080 frame is 7 px at 320 wide. helen_test faces shrunk to that eye
+# distance, centred in a grey frame (60 faces, found upright with the box on the face), with the searches at 640
+# and 1280 px: 40 px in 1920x1080: 10 -> 43; 30 px in 1920x1080: 0 -> 30, in 1280x720: 23 -> 44; 24 px in
+# 1280x720: 4 -> 39; 16 px in 640x480: 6 -> 30 (40 px in 640x480: 60 both). ``benchmarks/robustness.py``'s
+# small30_hd (all 330 stills, fitted within NME 0.08): 0% before, 55.5% with those two, 73.9% with the third at
+# 1920 px. Capping each search's boxes at 50 px (a search per size band, about half the cost) found fewer
+# (51.5%): Haar's hits on a face come from several neighbouring scales.
+SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH
+SMALLEST_BOX = 20  # pixels of the searched image: the smallest box of every search (the cascades' windows are 20-24)
 
 
 def smallest_widths(frame_width: int) -> list:

@@ -18,6 +18,8 @@ Variants (each an image transform that moves the reference points with the image
     (x2.2, clipped), side_light (lit from the image's right, the face's left side at 0.15 of the light, the edge
     through the face's centre), spotlight (a warm spot on the face, 0.08 of the light away from it), small30
     (shrunk so the outer eye corners are 30 px apart, INTER_AREA, centred in a grey frame of the original size),
+    small30_hd (stills only: the same in a grey 1920x1080 frame, the eyes 30 px apart in 1920: what the
+    detector, which shrinks large frames, must still find),
     rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
     screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``); video only: rot_sweep (roll
     30 sin(2 pi t / 10 s) degrees about the image centre), blank_black / blank_grey / blank_colour (uniform skin
@@ -98,6 +100,7 @@ SWEEP_PERIOD_S = 10.0
 GAP_FRAMES = 20
 SKIN_BGR = (110, 140, 190)
 FILL_GREY = 128
+HD_FRAME = (1920, 1080)  # small30_hd's frame (w, h): stills only (3.7 GB for cap12's frames)
 
 GOAL_TRACKED = 0.95      # share of face frames tracked, every video variant
 GOAL_DELTA = 0.01        # NME above the clean run's, every variant
@@ -200,17 +203,19 @@ def mirror(image, points):
     return np.ascontiguousarray(image[:, ::-1]), mirror_points(points, w)
 
 
-def shrink(image, points, *, scale: float, fill: int = FILL_GREY):
-    """Resized by ``scale`` (< 1, INTER_AREA) and centred in a frame of the original size filled with ``fill``."""
+def shrink(image, points, *, scale: float, fill: int = FILL_GREY, frame: tuple | None = None):
+    """Resized by ``scale`` (< 1, INTER_AREA) and centred in a frame of the original size (or ``frame`` (w, h))
+    filled with ``fill``."""
     h, w = image.shape[:2]
     nw, nh = max(1, int(round(w * scale))), max(1, int(round(h * scale)))
     if nw > w or nh > h:
         raise ValueError(f"shrink: scale {scale} does not shrink a {w}x{h} image")
     small = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA)
-    x0, y0 = (w - nw) // 2, (h - nh) // 2
-    out = np.full_like(image, fill)
-    out[y0:y0 + nh, x0:x0 + nw] = small
     sx, sy = nw / w, nh / h  # the scale OpenCV used: its pixel centres map as (x + 0.5) * s - 0.5
+    W, H = (w, h) if frame is None else frame
+    x0, y0 = (W - nw) // 2, (H - nh) // 2
+    out = np.full((H, W) + image.shape[2:], fill, image.dtype)
+    out[y0:y0 + nh, x0:x0 + nw] = small
     return out, affine_points(points, [[sx, 0.0, 0.5 * sx - 0.5 + x0], [0.0, sy, 0.5 * sy - 0.5 + y0]])
 
 
@@ -317,6 +322,9 @@ VARIANTS = (
     Variant("spotlight", f"a warm spot (radius {SPOT_SIGMA:g} face widths) in the dark", _each(spotlight)),
     Variant("small30", f"shrunk to {SMALL_EYE_PX:g} px between the outer eye corners, in a grey frame",
             _each(shrink, lambda e: {"scale": SMALL_EYE_PX / e})),
+    Variant("small30_hd", f"shrunk to {SMALL_EYE_PX:g} px between the outer eye corners, in a grey "
+            f"{HD_FRAME[0]}x{HD_FRAME[1]} frame", _each(shrink, lambda e: {"scale": SMALL_EYE_PX / e,
+                                                                         "frame": HD_FRAME}), video=False),
     Variant(f"rot+{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg counter-clockwise",
             _each(rotate, lambda e: {"degrees": ROTATION_DEG})),
     Variant(f"rot-{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg clockwise",

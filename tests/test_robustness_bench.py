@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -126,6 +127,25 @@ def test_small30_variant_puts_the_eyes_30_px_apart():
     _, video, _ = small.build(frames, pts, rng=rng, per_image=False)  # video: one scale, from the median (65)
     np.testing.assert_allclose(np.linalg.norm(video[:, 45] - video[:, 36], axis=1),
                                np.array([60.0, 65.0, 70.0]) * 30.0 / 65.0, atol=0.1)
+
+
+def test_small30_hd_variant_puts_the_eyes_30_px_apart_in_a_full_hd_frame():
+    rng = np.random.default_rng(SEED)
+    frames = [rng.integers(0, 256, size=(300, 400, 3), dtype=np.uint8) for _ in range(2)]
+    pts = np.stack([_points(rng) for _ in range(2)])
+    pts[:, 36] = (100.0, 100.0)
+    pts[:, 45] = [(160.0, 100.0), (170.0, 100.0)]
+    hd = next(v for v in rb.VARIANTS if v.name == "small30_hd")
+    assert hd.stills and not hd.video
+    out, each, _ = hd.build(frames, pts, rng=rng, per_image=True)
+    assert all(im.shape == (1080, 1920, 3) for im in out)
+    np.testing.assert_allclose(np.linalg.norm(each[:, 45] - each[:, 36], axis=1), 30.0, atol=0.1)
+    # the shrunk photo sits in the middle of the grey frame, and the points moved with it
+    small, moved = rb.shrink(frames[0], pts[0], scale=0.5, frame=(1920, 1080))
+    assert small.shape == (1080, 1920, 3) and small[0, 0].tolist() == [rb.FILL_GREY] * 3
+    np.testing.assert_array_equal(small[465:615, 860:1060], cv2.resize(frames[0], (200, 150),
+                                                                      interpolation=cv2.INTER_AREA))
+    np.testing.assert_allclose(moved, (pts[0] - 1.0 + 0.5) * 0.5 - 0.5 + [860, 465] + 1.0, atol=1e-9)
 
 
 # -------------------------------------------------------------------------------------- photometric transforms

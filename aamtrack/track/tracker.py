@@ -115,10 +115,12 @@ class TrackerConfig:
     nothing, cost only the searches); 0 never does.
     thorough_every: while a video has no accepted face, the detector's costly searches (uneven light, the
     smallest faces: ``HaarDetector.find``) and ``more_boxes`` run on the first frame of each loss (and of each
-    shot change while tracking) and then on every this many frames; the frames between run the quick searches only. A frame with no face
-    costs about 3 times as much with them (grey 640x480: 20 against 60 ms; at 1920x1080, cap12's background 85
-    against 390 ms, dark sensor noise 0.3 against 1.7 s, one core), so a long stretch without a face would crawl;
-    a small or side-lit face that comes into view is found within this many frames. 1: every frame."""
+    shot change while tracking) and then on every this many frames; the frames between run the quick searches
+    only. A frame with no face costs 2 to 13 times as much with them (one core: grey 640x480 28 against 56 ms;
+    1920x1080 grey 26 against 286 ms, cap12's background 94 against 834 ms, dark sensor noise 0.33 against 4.4 s),
+    so a long stretch without a face would crawl; with 8, a lost 1920x1080 frame costs on average 65 / 186 / 845
+    ms (30 / 97 / 335 ms before these searches), and a small or side-lit face that comes into view is found within
+    8 frames. 1: every frame."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7

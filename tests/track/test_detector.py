@@ -45,14 +45,15 @@ def test_unturn_inverts_the_turn():
     assert np.abs(unturn(pts @ M[:, :2].T + M[:, 2], 30.0, (80, 100)) - pts).max() < 1e-9
 
 
-@pytest.mark.parametrize("width,expected_widths", [(1280, (320, 640, 320, 320, 320, 320, 640, 1280)),
+@pytest.mark.parametrize("width,expected_widths", [(1920, (320, 640, 320, 320, 320, 320, 640, 1280, 1920)),
+                                                   (1280, (320, 640, 320, 320, 320, 320, 640, 1280)),
                                                    (640, (320, 640, 320, 320, 320, 320, 640)),
                                                    (320, (320, 640, 320, 320, 320, 320, 320))])
 def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(width, expected_widths):
     """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it
     after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by
     +30 and -30 degrees, upright after local equalisation with each cascade (uneven light), then the smallest
-    faces at twice and four times DETECT_WIDTH, as far as the frame is wide (a search the frame's width
+    faces at 2, 4 and 6 times DETECT_WIDTH, as far as the frame is wide (a search the frame's width
     already covered is not repeated)."""
     from aamtrack import detector as det_module
 
@@ -76,7 +77,9 @@ def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(
 def test_smallest_widths():
     from aamtrack.detector import smallest_widths
 
-    assert smallest_widths(1920) == [640, 1280]
+    assert smallest_widths(3840) == [640, 1280, 1920]
+    assert smallest_widths(1920) == [640, 1280, 1920]
+    assert smallest_widths(1280) == [640, 1280]
     assert smallest_widths(800) == [640, 800]  # the frame's own width, between the two
     assert smallest_widths(640) == [640]
     assert smallest_widths(360) == [360]  # never upsampled

@@ -124,8 +124,9 @@ class HaarDetector:
 
     def more(self, gray: np.ndarray, tried=()) -> Iterator[np.ndarray]:
         """Upright boxes other than ``tried`` ((x, y, w, h) upright boxes whose fits failed), best guesses first:
-        the plain search's smaller boxes, then the largest two of each of ``find``'s other upright searches. A box overlapping one already given or tried by more than ``SAME_BOX``
-        (intersection over union) is skipped. Each search runs only when the boxes before it are used up."""
+        the plain search's smaller boxes, then the first two of each of ``find``'s other upright searches (in its
+        order). A box overlapping one already given or tried by more than ``SAME_BOX`` (intersection over union)
+        is skipped. Each search runs only when the boxes before it are used up."""
         seen = [np.asarray(b, float) for b in tried]
         searches = [(width, equalize, cascade, smallest, slice(0, 2))
                     for angle, width, equalize, cascade, smallest in self._searches(gray.shape[1]) if angle == 0.0]

@@ -168,7 +168,7 @@ def smallest_widths(frame_width: int) -> list:
     widths = []
     for k in SMALLEST_WIDTHS:
         width = min(k * DETECT_WIDTH, frame_width)
-        if width not in widths and (not widths or width > widths[-1]):
+        if not widths or width > widths[-1]:  # capped at the frame's width: once reached, no wider search
             widths.append(width)
     return widths
 

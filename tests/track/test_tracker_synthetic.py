@@ -208,12 +208,13 @@ def test_a_more_confident_turned_fit_replaces_the_upright_one(synth_model):
 
 
 def _turned_detector(tracker, boxes_at):
-    """The tracker's Haar detector, answering from ``boxes_at(angle, real_boxes)`` instead of its own boxes."""
+    """The tracker's Haar detector, answering from ``boxes_at(angle, real_boxes, width=, **search)`` (the search's
+    width and keywords: equalisation, cascade, smallest) instead of its own boxes."""
     from aamtrack.detector import HaarDetector
 
     class Steered(HaarDetector):
         def detect_all(self, gray, angle=0.0, width=0, **kw):
-            return boxes_at(angle, super().detect_all(gray, angle, width, **kw))
+            return boxes_at(angle, super().detect_all(gray, angle, width, **kw), width=width, **kw)
 
     tracker.detector = Steered()
     return tracker
@@ -240,7 +241,7 @@ def test_a_face_found_only_in_a_turned_frame_also_tries_the_other_turned_frames(
     truth = affine_points(pts, M)  # the labels moved with the image
     model = load_model(default_model_path("3d"))
 
-    def boxes_at(angle, found):
+    def boxes_at(angle, found, **_):
         if angle == 0.0:
             return np.zeros((0, 4))
         if angle == 30.0:
@@ -272,7 +273,7 @@ def test_a_small_turned_box_does_not_replace_an_accepted_upright_fit(synth_model
     upright = Tracker(synth_model).detector.detect_all(image)
     assert len(upright)  # the premise: found upright
 
-    def boxes_at(angle, found):  # in the turned frames: the upright box, resized about its centre
+    def boxes_at(angle, found, **_):  # in the turned frames: the upright box, resized about its centre
         if angle == 0.0:
             return found
         b = upright[:1].copy()
@@ -339,7 +340,7 @@ def test_a_box_on_the_forehead_is_rescued_by_moved_boxes():
     from aamtrack.models import default_model_path
     from conftest import shared_path
 
-    def boxes_at(angle, found):
+    def boxes_at(angle, found, **_):
         b = found.copy()
         b[:, 1] -= 0.35 * b[:, 2]
         b[:, :2] += 0.05 * b[:, 2:]
@@ -643,23 +644,16 @@ def test_a_rejected_largest_box_gives_way_to_other_boxes():
     W = image.shape[1]
     model = load_model(default_model_path("3d"))
 
-    def boxes_at(angle, found, width, equalize):
+    def boxes_at(angle, found, width=0, equalize="plain", **_):
         if angle != 0.0:
             return np.zeros((0, 4))
         if (width or DETECT_WIDTH) == DETECT_WIDTH and equalize == "plain":
             return np.array([[0.0, 0.0, 0.2 * W, 0.2 * W]])  # background in the corner
         return found
 
-    from aamtrack.detector import HaarDetector
-
-    class Steered(HaarDetector):
-        def detect_all(self, gray, angle=0.0, width=0, **kw):
-            found = super().detect_all(gray, angle, width, **kw)
-            return boxes_at(angle, found, width, kw.get("equalize", "plain"))
-
     results = {}
     for n in (0, 3):
-        tracker = Tracker(model, config=TrackerConfig(more_boxes=n), detector=Steered())
+        tracker = _turned_detector(Tracker(model, config=TrackerConfig(more_boxes=n)), boxes_at)
         results[n], _ = tracker.detect_and_fit(image)
     assert results[0].confidence < tracker.config.min_confidence  # the corner's fits: rejected
     assert results[3].confidence >= tracker.config.min_confidence
@@ -695,7 +689,7 @@ def test_lost_frames_run_the_thorough_searches_every_so_many_frames(synth_model,
     seen = _SeenOnlyThoroughly()
     cfg = TrackerConfig(thorough_every=every, cut_below=0)
     results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
-        realtime_free(frames)))
+        synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.success for r in results] == [False] * first_found + [True] * (len(frames) - first_found)
     assert seen.flags == [i % every == 0 for i in range(first_found + 1)]  # a find per frame until found
 
@@ -712,13 +706,7 @@ def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
     assert float((thumbnail(face) * thumbnail(moved)).sum()) < TrackerConfig().cut_below  # the premise: a cut
     seen = _SeenOnlyThoroughly()
     results = list(Tracker(synth_model, config=TrackerConfig(thorough_every=4), detector=seen.detector).track(
-        realtime_free([face] * 3 + [moved] * 3)))
+        synth_frame(i, f) for i, f in enumerate([face] * 3 + [moved] * 3)))
     assert all(r.success for r in results)
     assert [r.status for r in results] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]
     assert seen.flags == [True, True]  # the first frame, and the cut
-
-
-def realtime_free(images):
-    from aamtrack.track.replay import ReplayFrame
-
-    return (ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images))

@@ -24,7 +24,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .kernels import landmark_cascade, landmark_descriptors
+from .kernels import blur_energy_ratio, landmark_cascade, landmark_descriptors
 from .mesh.landmarks import similarity_fit
 
 
@@ -75,6 +75,24 @@ def shape_features(ref: np.ndarray, pts: np.ndarray, M: np.ndarray) -> np.ndarra
     """(2 L,) the points pts (L, 2) in the reference frame, as their departure from ref (L, 2): (pts - centroid)
     M^-1 - ref, (x_0, y_0, x_1, ...); M the similarity of ``similarity_to(ref, pts)``."""
     return ((pts - pts.mean(0)) @ np.linalg.inv(M) - ref).reshape(-1)
+
+
+SHARPNESS_SIGMA = 1.0  # pixels of the image the cascade reads (the face about its finest couple's width)
+_SHARPNESS_TAPS = np.exp(-0.5 * (np.arange(-3, 4) / SHARPNESS_SIGMA) ** 2)
+_SHARPNESS_TAPS /= _SHARPNESS_TAPS.sum()
+
+
+def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
+    """How soft the face looks, 0..1: the gradient energy left after a Gaussian blur of ``SHARPNESS_SIGMA``
+    pixels over the gradient energy before it, on the box of the points pts (68, 2) (frame pixels) in ``image``
+    (the grey frame resampled by ``scale``: the face at the finest couple's size, so sharp and soft mean the same
+    for every face size) (``kernels.blur_energy_ratio``, one compiled pass). Independent of contrast; noise lowers
+    it; 0 for a flat box or one off the image. What picks the soft landmark cascade (``Model.soft_cascade``)."""
+    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
+    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return 0.0
+    return blur_energy_ratio(image, (lo[0], lo[1], hi[0], hi[1]), _SHARPNESS_TAPS)
 
 
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:

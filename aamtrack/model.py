@@ -13,10 +13,11 @@ never a crash in compiled code.
 from __future__ import annotations
 
 import json
+import math
 import tokenize
 import zipfile
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,13 +27,14 @@ from .errors import ModelFileError
 from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
 from .io.pts import N_LANDMARKS
-from .landmark_cascade import DescriptorSpec, LandmarkCascade
+from .landmark_cascade import DescriptorSpec, LandmarkCascade, sharpness
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 6  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 7  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
-# 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``)
+# 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
+# landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -115,10 +117,21 @@ class Model:
     config: dict = field(default_factory=dict)
     landmark_cascade: LandmarkCascade | None = None
     landmark_validator: Validator | None = None  # the reported confidence, after the landmark cascade
+    soft_cascade: LandmarkCascade | None = None  # the landmark cascade for faces softer than ``soft_above``
+    soft_above: float = math.inf  # ``landmark_cascade.sharpness`` above which a face takes ``soft_cascade``
 
     @property
     def kind(self) -> str:
         return self.shape.kind
+
+    def cascade_for(self, image: np.ndarray, scale: float, pts: np.ndarray) -> LandmarkCascade | None:
+        """The landmark cascade for the face at pts (68, 2) (frame pixels) in ``image`` (the grey frame resampled
+        by ``scale``): ``soft_cascade`` when the face looks softer than ``soft_above`` (``sharpness``), else
+        ``landmark_cascade``. The soft one shares the other's reference shape and descriptor components, so the
+        landmark validator reads either one's last-stage descriptors."""
+        if self.soft_cascade is not None and sharpness(image, scale, pts) > self.soft_above:
+            return self.soft_cascade
+        return self.landmark_cascade
 
     @property
     def n_params(self) -> int:
@@ -155,6 +168,11 @@ def save_model(model: Model, path: str | Path) -> None:
             lc.ref, lc.regressors.astype(np.float16), lc.biases
         arrays["landmarks/basis_mean"], arrays["landmarks/basis"] = lc.basis_mean, lc.basis
         arrays["landmarks/shape_regressors"] = lc.shape_regressors.astype(np.float16)
+    sc = model.soft_cascade
+    if sc is not None:  # its reference shape and descriptor components are the landmark cascade's
+        arrays["soft_landmarks/regressors"], arrays["soft_landmarks/biases"] = sc.regressors.astype(np.float16), \
+            sc.biases
+        arrays["soft_landmarks/shape_regressors"] = sc.shape_regressors.astype(np.float16)
     lv = model.landmark_validator
     if lv is not None:
         arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
@@ -175,6 +193,7 @@ def save_model(model: Model, path: str | Path) -> None:
                                                      "cell": lc.spec.cell, "bins": lc.spec.bins,
                                                      "floor": lc.spec.floor},
         "landmark_validator": None if lv is None else {"names": list(lv.names), "bias": lv.bias},
+        "soft_landmarks": None if sc is None else {"above": model.soft_above},
         "config": model.config,
     }
     arrays["meta"] = np.array(json.dumps(meta))
@@ -364,10 +383,12 @@ def _read(c: _Checker, meta: dict) -> Model:
     lv = meta.get("landmark_validator")
     if lv is not None and lc is None:
         c.fail("a landmark validator without a landmark cascade")
+    soft, above = _soft_cascade(c, meta.get("soft_landmarks"), lc)
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
                  landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv,
-                                                                       N_LANDMARKS * lc.basis.shape[2]))
+                                                                       N_LANDMARKS * lc.basis.shape[2]),
+                 soft_cascade=soft, soft_above=above)
 
 
 def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
@@ -413,6 +434,26 @@ def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
                            c.array("landmarks/regressors", np.float32, (K, 2 * N_LANDMARKS, N_LANDMARKS * d)),
                            c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)),
                            c.array("landmarks/shape_regressors", np.float32, (K, 2 * N_LANDMARKS, 2 * N_LANDMARKS)))
+
+
+def _soft_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None) -> tuple:
+    """(soft cascade or None, its sharpness threshold): the landmark cascade ``lc`` with the soft one's
+    regressors."""
+    if spec is None:
+        return None, math.inf
+    if lc is None:
+        c.fail("a soft landmark cascade without a landmark cascade")
+    try:
+        above = float(spec["above"])
+    except (KeyError, TypeError, ValueError):
+        c.fail("unreadable soft landmark cascade settings")
+    if not 0.0 <= above <= 1.0:
+        c.fail(f"soft landmark cascade threshold {above} outside 0..1")
+    shape = lc.regressors.shape
+    return replace(lc, regressors=c.array("soft_landmarks/regressors", np.float32, shape),
+                   biases=c.array("soft_landmarks/biases", np.float64, lc.biases.shape),
+                   shape_regressors=c.array("soft_landmarks/shape_regressors", np.float32,
+                                            lc.shape_regressors.shape)), above
 
 
 __all__ = ["FORMAT_VERSION", "N_POSE", "STAT_NAMES", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

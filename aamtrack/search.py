@@ -119,17 +119,18 @@ class Searcher:
                          last: int = 0) -> FitResult:
         """The fit with its 68 points moved by the model's landmark cascade (``aamtrack.landmark_cascade``),
         read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
-        search passes the one it used, whose level is made already); the fit itself when the model has none.
+        search passes the one it used, whose level is made already); the fit itself when the model has none. A
+        soft face takes the model's soft cascade (``Model.cascade_for``).
         The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
         statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one. ``last`` > 0 runs only the
         cascade's last ``last`` stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
-        lc = self.model.landmark_cascade
-        if lc is None:
+        if self.model.landmark_cascade is None:
             return res
         if r is None:
             r = self.factors(res.p)[-1]
-        first = max(0, lc.n_stages - last) if last > 0 else 0
         img = levels.resampled(r)
+        lc = self.model.cascade_for(img, r, res.landmarks)
+        first = max(0, lc.n_stages - last) if last > 0 else 0
         pts, z, prior = lc.run(img, r, res.landmarks, first)
         lv = self.model.landmark_validator
         conf = res.confidence if lv is None else lv(res.stats, z)

@@ -1,5 +1,6 @@
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -25,7 +26,31 @@ def test_round_trip(tmp_path, synth_model):
     assert lv0 is not None and lv0.descriptor_weights is not None  # the synthetic model has one: it is tested
     assert lv.bias == lv0.bias and np.array_equal(lv.descriptor_weights, lv0.descriptor_weights)
     assert np.array_equal(lv.weights, lv0.weights) and np.array_equal(lv.scale, lv0.scale)
+    sc, sc0 = m.soft_cascade, synth_model.soft_cascade
+    assert sc0 is not None and 0 <= synth_model.soft_above <= 1  # the synthetic model has one too
+    assert m.soft_above == synth_model.soft_above and np.array_equal(sc.regressors, sc0.regressors)
+    assert np.array_equal(sc.biases, sc0.biases) and np.array_equal(sc.shape_regressors, sc0.shape_regressors)
+    assert sc.basis is m.landmark_cascade.basis and sc.ref is m.landmark_cascade.ref  # stored once, shared
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
+
+
+def test_soft_faces_take_the_soft_cascade(synth_model, synth_data):
+    """``Model.cascade_for``: a face above the threshold takes the soft cascade, below it the sharp one (the
+    threshold moved about the face's own sharpness, so both sides are seen on one image)."""
+    from dataclasses import replace
+
+    from aamtrack.landmark_cascade import sharpness
+
+    images, points = synth_data
+    gray = cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY).astype(np.float32) if images[0].ndim == 3 else \
+        images[0].astype(np.float32)
+    s = sharpness(gray, 1.0, points[0])
+    assert 0 < s < 1
+    assert replace(synth_model, soft_above=s - 0.01).cascade_for(gray, 1.0, points[0]) is synth_model.soft_cascade
+    assert replace(synth_model, soft_above=s + 0.01).cascade_for(gray, 1.0, points[0]) is \
+        synth_model.landmark_cascade
+    assert replace(synth_model, soft_cascade=None, soft_above=0.0).cascade_for(gray, 1.0, points[0]) is \
+        synth_model.landmark_cascade
 
 
 def _rewrite_meta(path, out, **changes):
@@ -112,13 +137,18 @@ def _damaged(synth_model):
                                        synth_model.landmark_validator.descriptor_weights[:-1]}, {}, "has shape"),
         ("landmark validator without cascade", {}, {"landmark_cascade": None}, "without a landmark cascade"),
         ("unreadable landmark validator", {}, {"landmark_validator": {"names": 3}}, "unreadable landmark_validator"),
+        ("soft cascade threshold", {}, {"soft_landmarks": {"above": 2.0}}, "outside 0..1"),
+        ("unreadable soft cascade", {}, {"soft_landmarks": {"below": 0.5}}, "unreadable soft landmark cascade"),
+        ("soft cascade without cascade", {}, {"landmark_cascade": None, "landmark_validator": None},
+         "soft landmark cascade without a landmark cascade"),
+        ("soft regressors of another size", {"soft_landmarks/biases": np.zeros((1, 136))}, {}, "has shape"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(19))
+@pytest.mark.parametrize("case", range(23))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

@@ -245,3 +245,52 @@ def _shape_in_frame(pts, ref, a, c, mx, my, out):
         out[2 * li] = (dx * a + dy * c) / det - ref[li, 0]
         out[2 * li + 1] = (dy * a - dx * c) / det - ref[li, 1]
     return True
+
+
+@numba.njit(**NJIT)
+def _blur_energy_ratio(img, x0, y0, x1, y1, taps):
+    """The squared forward differences of ``img`` (H, W) blurred by the symmetric ``taps`` (odd length, separable,
+    edges replicated), summed over the box [x0, x1) x [y0, y1) (inside the image, at least 2 x 2), over those of
+    ``img`` itself; 0 when the box is flat. The box and a margin are copied first (edges replicated there once),
+    so the blur's loops have no branches."""
+    H, W = img.shape
+    R = (taps.shape[0] - 1) // 2
+    n = 2 * R + 1
+    h, w = y1 - y0, x1 - x0
+    src = np.empty((h + 2 * R, w + 2 * R), np.float32)
+    for j in range(h + 2 * R):
+        y = min(max(y0 - R + j, 0), H - 1)
+        for i in range(w + 2 * R):
+            src[j, i] = img[y, min(max(x0 - R + i, 0), W - 1)]
+    tf = taps.astype(np.float32)
+    rows = np.zeros((h + 2 * R, w), np.float32)
+    for j in range(h + 2 * R):
+        for t in range(n):
+            c = tf[t]
+            for i in range(w):
+                rows[j, i] += c * src[j, i + t]
+    blur = np.zeros((h, w), np.float32)
+    for j in range(h):
+        for t in range(n):
+            c = tf[t]
+            for i in range(w):
+                blur[j, i] += c * rows[j + t, i]
+    e_img = 0.0
+    e_blur = 0.0
+    for j in range(h):
+        for i in range(w):
+            a = src[j + R, i + R]
+            b = blur[j, i]
+            if i + 1 < w:
+                d = np.float64(src[j + R, i + R + 1] - a)
+                e_img += d * d
+                d = np.float64(blur[j, i + 1] - b)
+                e_blur += d * d
+            if j + 1 < h:
+                d = np.float64(src[j + R + 1, i + R] - a)
+                e_img += d * d
+                d = np.float64(blur[j + 1, i] - b)
+                e_blur += d * d
+    if e_img <= 1e-6:
+        return 0.0
+    return e_blur / e_img

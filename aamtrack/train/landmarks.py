@@ -69,15 +69,17 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
                            halves: tuple = (0.35, 0.22, 0.14, 0.1), n_starts: int = 16,
                            error_scale: tuple = (0.5, 1.5), n_components: int = 48,
                            alphas: tuple = (0.3, 1.0, 3.0, 10.0, 30.0), shape_stages: int = 1,
-                           shape_weight: float = 3.0, rng: np.random.Generator,
+                           shape_weight: float = 3.0, rng: np.random.Generator, like: LandmarkCascade | None = None,
                            progress=None) -> tuple[LandmarkCascade, list]:
     """Learn the cascade from training images (grey, each resampled by ``scales[i]``), their labels truth
     (n, 68, 2) (frame pixels), the AAM's final fits (M, 68, 2) of image ``fit_owner[m]``, and each image's group
     (an image and its mirror: one side of a hold-out). Each stage projects a point's descriptor on its
     ``n_components`` principal components (over all points and starts) before the regression; the last
-    ``shape_stages`` also read the points' shape (module docstring). Returns (cascade, per-stage record)."""
+    ``shape_stages`` also read the points' shape (module docstring); with ``like`` (a cascade of the same stages),
+its reference shape, descriptor means and components instead (so that a cascade's last-stage descriptors, which the landmark
+validator weighs, mean the same in both). Returns (cascade, per-stage record)."""
     progress = progress or (lambda it, **_: it)
-    ref = reference_shape(truth)
+    ref = reference_shape(truth) if like is None else like.ref
     lib, real = [], []
     err = nme(fits, truth[fit_owner])
     for i in range(len(truth)):
@@ -112,9 +114,14 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
             if with_shape:
                 S[m] = shape_features(ref, X[m], M)
         sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
-        mu = sample.mean(0)
-        _, sv, Vt = np.linalg.svd(sample - mu, full_matrices=False)
-        mu, B = mu.astype(np.float32), np.ascontiguousarray(Vt[:d].T, dtype=np.float32)
+        if like is None:
+            mu = sample.mean(0)
+            _, sv, Vt = np.linalg.svd(sample - mu, full_matrices=False)
+            mu, B = mu.astype(np.float32), np.ascontiguousarray(Vt[:d].T, dtype=np.float32)
+        else:
+            mu, B = like.basis_mean[k], like.basis[k]
+        centred = sample - mu
+        energy = float(np.linalg.norm(centred @ B) ** 2 / max(np.linalg.norm(centred) ** 2, 1e-30))
         Z = project_descriptors(F, mu, B)
         del F
         nz = Z.shape[1]
@@ -138,7 +145,7 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         e = nme(X, truth[owner])
         record.append({"stage": k, "half": halves[k], "alpha": alpha, "shape": bool(with_shape),
                        "train_nme_median": float(np.median(e)), "train_nme_mean": float(e.mean()),
-                       "pca_energy": float((sv[:d] ** 2).sum() / max((sv ** 2).sum(), 1e-30))})
+                       "pca_energy": energy})
         log.info("landmark stage %d: ridge %g, training starts' NME median %.4f mean %.4f", k, alpha,
                  float(np.median(e)), float(e.mean()))
     return LandmarkCascade(ref, spec, tuple(float(h) for h in halves), np.stack(means), np.stack(bases),

@@ -29,6 +29,7 @@ from ..search import Searcher
 from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
 from .detection import box_geometry, training_boxes
 from .profile import profile_faces
+from ..landmark_cascade import LandmarkCascade, sharpness
 from .landmarks import learn_landmark_cascade
 from .octaves import Octaves, octave_factor
 from .shape2d import pca_shape_model, procrustes_mean
@@ -103,8 +104,15 @@ class TrainConfig:
     (mean 0.0610 -> 0.0559), but helen_test itself mean 0.0400 -> 0.0412 (share 95.5% both) and cap12 clean
     0.0241 -> 0.0266 (blurred 0.0441 -> 0.0437): one linear cascade for sharp and blurred faces fits the sharp
     ones less closely. (A first version started the blurred copies from their sharp images' fits: cap12 blurred
-    0.0438 -> 0.0441, clean 0.0240 -> 0.0264, helen_test 95.2% -> 94.5%.) For footage known to be soft, train
-    with it.
+    0.0438 -> 0.0441, clean 0.0240 -> 0.0264, helen_test 95.2% -> 94.5%.) ``soft_share`` does better for both.
+    soft_share: a second landmark cascade for soft faces (``Model.soft_cascade``), learned on Gaussian-blurred
+    copies of this share of the (mirrored) training images alone (sigma drawn in ``landmark_blur_eye``, each
+    starting from the search's own fit of the copy), with the first cascade's descriptor components; a face whose
+    ``landmark_cascade.sharpness`` is above a threshold learned on the training fits (``_soft_threshold``) takes
+    it (0: none). Measured on the 3D model's captured fits (/tmp harness, 2026-11-26, helen_train + mirrors,
+    blurred by 0.02-0.08 eye distances, helen_test blurred by 0.06): blurred helen_test mean NME 0.0582 -> 0.0496
+    (NME > 0.08: 48 -> 27 of 308 fitted) against the sharp cascade; the soft cascade on sharp faces 0.0387 against
+    0.0349, which the gate keeps from them; half the copies: 0.0520.
     landmark_validator: with a landmark cascade, learn the landmark validator (``train.validator``), the
     confidence reported after the cascade, from full fits of the training photos: from each one's Haar box, from
     its shape fit moved a little (as a tracked frame starts), from
@@ -143,7 +151,8 @@ class TrainConfig:
     landmark_shape_stages: int = 1
     landmark_shape_weight: float = 3.0
     landmark_blur_share: float = 0.0
-    landmark_blur_eye: tuple = (0.02, 0.07)
+    landmark_blur_eye: tuple = (0.02, 0.08)
+    soft_share: float = 1.0
     landmark_validator: bool = True
     validator_negatives: int = 2
     validator_degraded: float = 0.5
@@ -280,41 +289,58 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
     return np.array(out).reshape(-1, 68, 2), np.array(idx, np.int64)
 
 
-def _blurred_cascade_data(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int,
-                          images: list, scales: list, fits: np.ndarray, owner: np.ndarray, owner_group: np.ndarray,
-                          config: TrainConfig) -> tuple:
-    """The landmark cascade's data plus Gaussian-blurred copies of a share ``landmark_blur_share`` of the sharp
-    training images (sigma drawn in ``landmark_blur_eye`` outer eye-corner distances), each with its sharp image's
-    labels and hold-out group and, as its start, the search's own fit of the blurred copy from the sharp image's
-    Haar box (where the search really leaves a blurred face, farther off than on the sharp one; copies without a
-    box take the sharp image's fits). Returns (images, scales, truth, groups, fits, fit owners)."""
-    rng = np.random.default_rng(config.seed + 4)
+def _blurred_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int, fits: np.ndarray,
+                    owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator) -> tuple:
+    """Gaussian-blurred copies of a random ``share`` of the sharp training images (sigma drawn in ``eye_range``
+    outer eye-corner distances) for a landmark cascade: each copy's grey image at the finest couple's factor and
+    that factor, the sharp image it copies, and, as its starts, the search's own fit of the copy from the sharp
+    image's Haar box (where the search really leaves a blurred face, farther off than on the sharp one; copies
+    without a box take the sharp image's fits ``fits[owner == i]``). Returns (images, scales, copied image
+    (n,), fits (k, 68, 2), the copy each fit belongs to (k,))."""
     searcher = Searcher(model)
     sm = model.shape
-    pick = rng.permutation(n_sharp)[:int(round(config.landmark_blur_share * n_sharp))]
-    images, scales = list(images), list(scales)
-    extra_fits, extra_owner = [], []
+    pick = rng.permutation(n_sharp)[:int(round(share * n_sharp))]
+    images, scales, copy_fits, copy_owner = [], [], [], []
     for j, i in enumerate(pick):
         eye = float(np.linalg.norm(pts[i, 45] - pts[i, 36]))
-        blurred = cv2.GaussianBlur(gray[i], (0, 0), max(0.3, rng.uniform(*config.landmark_blur_eye) * eye))
+        blurred = cv2.GaussianBlur(gray[i], (0, 0), max(0.3, rng.uniform(*eye_range) * eye))
         levels = Levels(blurred, model.features)
         f = [fk[i] for fk in factors]
         images.append(levels.resampled(f[-1]))
         scales.append(f[-1])
         box = _image_box(boxes, i, n_orig, gray[i].shape[1])
         if box is not None:
-            extra_fits.append(searcher.fit(levels, _box_start(sm, box, box_points), factors=f,
-                                           landmarks=False).landmarks)
-            extra_owner.append(n_sharp + j)
+            copy_fits.append(searcher.fit(levels, _box_start(sm, box, box_points), factors=f,
+                                          landmarks=False).landmarks)
+            copy_owner.append(j)
         else:
             rows = np.flatnonzero(owner == i)
-            extra_fits.extend(fits[rows])
-            extra_owner.extend([n_sharp + j] * len(rows))
-    copy_of = np.r_[np.arange(n_sharp), pick]
-    fits = np.concatenate([fits, np.array(extra_fits).reshape(-1, 68, 2)])
-    owner = np.r_[owner, np.array(extra_owner, np.int64)].astype(np.int64)
+            copy_fits.extend(fits[rows])
+            copy_owner.extend([j] * len(rows))
     log.info("landmark cascade: %d blurred copies", len(pick))
-    return images, scales, pts[copy_of], owner_group[copy_of], fits, owner
+    return images, scales, pick, np.array(copy_fits).reshape(-1, 68, 2), np.array(copy_owner, np.int64)
+
+
+def _soft_threshold(sharp: LandmarkCascade, soft: LandmarkCascade, images: list, scales: list, truth: np.ndarray,
+                    fits: np.ndarray, owner: np.ndarray) -> tuple[float, dict]:
+    """The ``sharpness`` above which the soft cascade serves the training fits (sharp images' and blurred
+    copies', starts ``fits`` of image ``owner``) better: the threshold, among the fits' own sharpness values, with
+    the least mean NME when each fit takes the cascade it picks. Both cascades learned on these fits, so each is
+    at its best on its own kind; the choice is between kinds. Returns (threshold, record)."""
+    s = np.array([sharpness(images[i], scales[i], x) for x, i in zip(fits, owner)])
+    e_sharp = nme(np.array([sharp.apply(images[i], scales[i], x) for x, i in zip(fits, owner)]), truth[owner])
+    e_soft = nme(np.array([soft.apply(images[i], scales[i], x) for x, i in zip(fits, owner)]), truth[owner])
+    order = np.argsort(s)
+    # gated error with the threshold just above s[order[j]]: the first j + 1 take the sharp cascade
+    cost = np.r_[e_soft.sum(), e_soft.sum() + np.cumsum(e_sharp[order] - e_soft[order])]
+    j = int(np.argmin(cost))
+    above = 0.0 if j == 0 else float(s[order[j - 1]] if j == len(s) else 0.5 * (s[order[j - 1]] + s[order[j]]))
+    rec = {"above": above, "soft_share": float((s > above).mean()), "nme_sharp_only": float(e_sharp.mean()),
+           "nme_soft_only": float(e_soft.mean()), "nme_gated": float(cost[j] / len(s))}
+    log.info("soft landmark cascade: above sharpness %.3f (%.0f%% of the training fits), NME %.4f (sharp cascade "
+             "only %.4f, soft only %.4f)", above, 100 * rec["soft_share"], rec["nme_gated"], rec["nme_sharp_only"],
+             rec["nme_soft_only"])
+    return above, rec
 
 
 def _landmarks(sm: ShapeModel, basis: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -625,7 +651,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     final_lmk = _landmarks(sm, basis, Pfinal)
     final_err = nme(final_lmk, pts[owner])
     t_val = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd
-    landmark_cascade, lmk_record = None, []
+    landmark_cascade, lmk_record, soft_cascade, soft_above, soft_record = None, [], None, float("inf"), []
     if config.landmark_halves:
         fits_det, owner_det = _detection_fits(replace(model, validator=validator), feats, factors, boxes, box_points,
                                               [g.shape[1] for g in gray], n_orig, n_sharp)
@@ -636,33 +662,51 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                  float(np.median(nme(fits_det, pts[owner_det]))))
         lmk_images, lmk_scales = list(fine_gray), list(factors[-1][:n_sharp])
         lmk_truth, lmk_groups = pts[:n_sharp], owner_group[:n_sharp]
+        lmk_kw = dict(halves=tuple(config.landmark_halves), n_starts=config.landmark_starts,
+                      n_components=config.landmark_pca, shape_stages=config.landmark_shape_stages,
+                      shape_weight=config.landmark_shape_weight, progress=progress)
+        searching = replace(model, validator=validator)
         if config.landmark_blur_share > 0:  # blurred copies: the sharp image's truth and group, their own fits
-            lmk_images, lmk_scales, lmk_truth, lmk_groups, fits_det, owner_det = _blurred_cascade_data(
-                replace(model, validator=validator), gray, pts, boxes, box_points, factors, n_orig, n_sharp,
-                lmk_images, lmk_scales, fits_det, owner_det, owner_group, config)
+            b_images, b_scales, b_of, b_fits, b_owner = _blurred_copies(
+                searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
+                config.landmark_blur_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 4))
+            lmk_images, lmk_scales = lmk_images + b_images, lmk_scales + b_scales
+            lmk_truth, lmk_groups = pts[np.r_[np.arange(n_sharp), b_of]], owner_group[np.r_[np.arange(n_sharp), b_of]]
+            fits_det, owner_det = np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_sharp + b_owner]
         landmark_cascade, lmk_record = learn_landmark_cascade(
             lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,
-            halves=tuple(config.landmark_halves), n_starts=config.landmark_starts, n_components=config.landmark_pca,
-            shape_stages=config.landmark_shape_stages, shape_weight=config.landmark_shape_weight,
-            rng=np.random.default_rng(config.seed + 3), progress=progress)
+            rng=np.random.default_rng(config.seed + 3), **lmk_kw)
+        if config.soft_share > 0:  # a cascade of its own for soft faces, on blurred copies alone
+            b_images, b_scales, b_of, b_fits, b_owner = _blurred_copies(
+                searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
+                config.soft_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 6))
+            soft_cascade, soft_record = learn_landmark_cascade(
+                b_images, b_scales, pts[b_of], b_fits, b_owner, owner_group[b_of], like=landmark_cascade,
+                rng=np.random.default_rng(config.seed + 7), **lmk_kw)
+            n_l = len(lmk_images)
+            soft_above, gate = _soft_threshold(landmark_cascade, soft_cascade, lmk_images + b_images,
+                                               lmk_scales + b_scales, np.concatenate([lmk_truth, pts[b_of]]),
+                                               np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_l + b_owner])
+            soft_record.append({"gate": gate})
     del fine_gray
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
     landmark_validator = None
     if landmark_cascade is not None and config.landmark_validator:
         landmark_validator = _landmark_validator(
-            replace(model, validator=validator, landmark_cascade=landmark_cascade), gray, pts, P, boxes, box_points,
+            replace(model, validator=validator, landmark_cascade=landmark_cascade, soft_cascade=soft_cascade,
+                    soft_above=soft_above), gray, pts, P, boxes, box_points,
             n_orig, np.random.default_rng(config.seed + 5), config)
     n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
                "landmark_s": t_lmk,
                "landmark_validator_s": time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val - t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
-           "landmark_stages": lmk_record,
+           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
            "train_final_nme_median": float(np.median(final_err[:n0])), "timings": timings}
     log.info("training starts: median NME %.4f -> %.4f after the search", cfg["train_start_nme_median"],
              cfg["train_final_nme_median"])
     model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
                   detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade,
-                  landmark_validator=landmark_validator)
+                  landmark_validator=landmark_validator, soft_cascade=soft_cascade, soft_above=soft_above)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

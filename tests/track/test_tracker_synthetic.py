@@ -710,3 +710,28 @@ def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
     assert all(r.success for r in results)
     assert [r.status for r in results] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]
     assert seen.flags == [True, True]  # the first frame, and the cut
+
+
+def test_blurred_frames_take_the_soft_landmark_cascade(synth_model):
+    """A face that looks soft (``landmark_cascade.sharpness`` above the model's threshold) gets the soft cascade's
+    points, a sharp one the sharp cascade's: the same frames tracked with the soft cascade switched off
+    (threshold 1) give the same sharp-frame points and other blurred-frame points."""
+    import cv2
+    from dataclasses import replace
+
+    from aamtrack.track.replay import ReplayFrame
+
+    frames, truth = synth.moving_face_frames(4)
+    eye = float(np.linalg.norm(truth[0][45] - truth[0][36]))
+    soft = [cv2.GaussianBlur(f, (0, 0), 0.08 * eye) for f in frames]
+    off = replace(synth_model, soft_above=1.0)
+    assert synth_model.soft_cascade is not None and synth_model.soft_above < 1.0
+
+    def fit(model, images):  # each frame a still: a fresh detection and the full cascade
+        return [next(iter(Tracker(model).track([ReplayFrame(0, 0.0, im)]))) for im in images]
+
+    for r, q in zip(fit(synth_model, frames), fit(off, frames)):
+        assert r.success and np.array_equal(r.landmarks, q.landmarks)  # sharp: the sharp cascade either way
+    moved = [not np.allclose(r.landmarks, q.landmarks) for r, q in zip(fit(synth_model, soft), fit(off, soft))
+             if r.success and q.success]
+    assert len(moved) >= 3 and all(moved)  # soft: the soft cascade's points

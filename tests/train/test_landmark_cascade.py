@@ -1,6 +1,7 @@
 """The landmark cascade (supervised descent on local descriptors): its face frame, and learning it on synthetic
 faces with known landmarks recovers known displacements."""
 
+import cv2
 import numpy as np
 
 from aamtrack.landmark_cascade import DescriptorSpec, similarity_to
@@ -116,3 +117,66 @@ def test_shape_features_are_the_points_in_the_reference_frame():
     assert np.abs(moved - (Q + (S[0] @ feats).reshape(-1, 2) @ M)).max() < 1e-4  # px (float32 features)
     assert np.abs(zero.apply_slow(image, 1.0, Q) - moved).max() < 1e-4
     assert zero.shape_from == 0 and np.abs(prior - (moved - Q)).max() < 1e-4  # the whole move is the shape's
+
+
+def _blurred(images, truth, eyes_sigma):
+    """Each image blurred by ``eyes_sigma`` of its own outer eye distance."""
+    out = []
+    for im, P in zip(images, truth):
+        out.append(cv2.GaussianBlur(im, (0, 0), eyes_sigma * float(np.linalg.norm(P[45] - P[36]))))
+    return out
+
+
+def test_sharpness_tells_blurred_faces_whatever_their_contrast():
+    """``sharpness`` rises with blur on every face, and does not move with the image's contrast or brightness."""
+    from aamtrack.landmark_cascade import sharpness
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(10, rng, size=(150, 150), scale=85.0)
+    gray = [im.astype(np.float32) for im in images]
+    sharp = np.array([sharpness(g, 1.0, P) for g, P in zip(gray, truth)])
+    soft = np.array([sharpness(g, 1.0, P) for g, P in zip(_blurred(gray, truth, 0.05), truth)])
+    assert (soft > sharp + 0.1).all() and (soft <= 1.0).all() and (sharp > 0).all()
+    dim = np.array([sharpness(0.3 * g + 40.0, 1.0, P) for g, P in zip(gray, truth)])
+    assert np.abs(dim - sharp).max() < 1e-4  # a ratio of energies: contrast and offset cancel
+    small = cv2.resize(gray[0], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    box = small[int(truth[0, :, 1].min() / 2):int(truth[0, :, 1].max() / 2) + 2,
+                int(truth[0, :, 0].min() / 2):int(truth[0, :, 0].max() / 2) + 2]
+    assert sharpness(small, 0.5, truth[0]) > 0 and box.std() > 1  # the points reach the half-size face via scale
+    assert sharpness(np.zeros((150, 150), np.float32), 1.0, truth[0]) == 0.0  # flat: nothing to call soft
+    assert sharpness(gray[0], 1.0, truth[0] + 1000.0) == 0.0  # off the image
+
+
+def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_finds_them():
+    """A second cascade learned on blurred copies alone, with the first one's descriptor components (``like``),
+    fits held-out blurred faces closer than the sharp cascade does, and ``_soft_threshold`` puts its gate between
+    the sharp and the blurred training faces' sharpness."""
+    from aamtrack.landmark_cascade import sharpness
+    from aamtrack.train.pipeline import _soft_threshold
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(100, rng, size=(150, 150), scale=85.0)
+    gray = [im.astype(np.float32) for im in images]
+    soft_gray = _blurred(gray, truth, 0.06)
+    train, test = slice(0, 80), slice(80, 100)
+    eye = np.linalg.norm(truth[:, 45] - truth[:, 36], axis=1).mean()
+    fits = _errors(truth[train], rng, 0.05 * eye)
+    kw = dict(spec=DescriptorSpec(cells=2, cell=4, bins=6), halves=(0.25, 0.18, 0.14), n_starts=12, n_components=24)
+    sharp, _ = learn_landmark_cascade(gray[train], [1.0] * 80, truth[train], fits, np.arange(80), np.arange(80),
+                                      rng=np.random.default_rng(SEED + 1), **kw)
+    soft, _ = learn_landmark_cascade(soft_gray[train], [1.0] * 80, truth[train], fits, np.arange(80), np.arange(80),
+                                     rng=np.random.default_rng(SEED + 1), like=sharp, **kw)
+    assert np.array_equal(soft.basis, sharp.basis) and np.array_equal(soft.basis_mean, sharp.basis_mean)
+    assert np.array_equal(soft.ref, sharp.ref) and not np.array_equal(soft.regressors, sharp.regressors)
+    starts = _errors(truth[test], np.random.default_rng(SEED + 2), 0.05 * eye)
+    on_soft = [(g, s) for g, s in zip(soft_gray[test], starts)]
+    e_sharp = nme(np.array([sharp.apply(g, 1.0, s) for g, s in on_soft]), truth[test]).mean()
+    e_soft = nme(np.array([soft.apply(g, 1.0, s) for g, s in on_soft]), truth[test]).mean()
+    assert e_soft < 0.9 * e_sharp  # blurred faces: the soft cascade is closer (0.0244 vs 0.0307 when written)
+    images_all = gray[train] + soft_gray[train]
+    owner = np.arange(160)
+    above, rec = _soft_threshold(sharp, soft, images_all, [1.0] * 160, np.concatenate([truth[train]] * 2),
+                                 np.concatenate([fits, fits]), owner)
+    s = np.array([sharpness(images_all[i], 1.0, x) for i, x in zip(owner, np.concatenate([fits, fits]))])
+    assert np.mean(s[:80] <= above) > 0.9 and np.mean(s[80:] > above) > 0.9  # sharp below, blurred above (all, when written)
+    assert rec["nme_gated"] <= min(rec["nme_sharp_only"], rec["nme_soft_only"]) + 1e-12

@@ -331,7 +331,7 @@ def _soft_threshold(sharp: LandmarkCascade, soft: LandmarkCascade, images: list,
     e_sharp = nme(np.array([sharp.apply(images[i], scales[i], x) for x, i in zip(fits, owner)]), truth[owner])
     e_soft = nme(np.array([soft.apply(images[i], scales[i], x) for x, i in zip(fits, owner)]), truth[owner])
     order = np.argsort(s)
-    # gated error with the threshold just above s[order[j]]: the first j + 1 take the sharp cascade
+    # cost[j]: the summed error when the j least sharp fits take the sharp cascade and the rest the soft one
     cost = np.r_[e_soft.sum(), e_soft.sum() + np.cumsum(e_sharp[order] - e_soft[order])]
     j = int(np.argmin(cost))
     above = 0.0 if j == 0 else float(s[order[j - 1]] if j == len(s) else 0.5 * (s[order[j - 1]] + s[order[j]]))
@@ -687,7 +687,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             soft_above, gate = _soft_threshold(landmark_cascade, soft_cascade, lmk_images + b_images,
                                                lmk_scales + b_scales, np.concatenate([lmk_truth, pts[b_of]]),
                                                np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_l + b_owner])
-            soft_record.append({"gate": gate})
+            soft_record.append({"gate": gate})  # after the stages' records
     del fine_gray
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
     landmark_validator = None

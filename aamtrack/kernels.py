@@ -145,19 +145,6 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
     return out
 
 
-def blur_energy_ratio(image, box, taps) -> float:
-    """The gradient energy of the grey ``image`` (H, W) float32 blurred by the separable ``taps`` over its own, on
-    ``box`` (x0, y0, x1, y1) (clipped to the image; 0.0 when less than 2 x 2 is left or the box is flat)
-    (``aamtrack._kernels.patches._blur_energy_ratio``)."""
-    img = _in(image, F32, 2, "image")
-    H, W = img.shape
-    x0, y0 = max(int(box[0]), 0), max(int(box[1]), 0)
-    x1, y1 = min(int(box[2]), W), min(int(box[3]), H)
-    if x1 - x0 < 2 or y1 - y0 < 2:
-        return 0.0
-    return float(_p._blur_energy_ratio(img, x0, y0, x1, y1, _in(taps, F64, 1, "taps")))
-
-
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, regressors, biases,
                      shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float, feat,
                      shape, prior) -> np.ndarray:

@@ -108,38 +108,3 @@ def test_fast_atan2_is_close_to_math_atan2():
     for y, x in rng.normal(size=(2000, 2)) * np.array([1.0, 3.0]):
         assert abs(_atan2(y, x) - np.arctan2(y, x)) < 2e-5
     assert _atan2(0.0, 0.0) == 0.0 and abs(_atan2(0.0, -1.0) - np.pi) < 1e-6
-
-
-def reference_blur_energy_ratio(image, box, taps):
-    """Blur the whole image (separable taps, edges replicated, float64), then sum squared forward differences
-    inside the box, blurred over raw."""
-    R = (len(taps) - 1) // 2
-    H, W = image.shape
-    pad = np.pad(image.astype(np.float64), R, mode="edge")
-    rows = sum(t * pad[:, k:k + W] for k, t in enumerate(taps))
-    blur = sum(t * rows[k:k + H, :] for k, t in enumerate(taps))
-    x0, y0, x1, y1 = box
-
-    def energy(a):
-        a = a[y0:y1, x0:x1]
-        return (np.diff(a, axis=1) ** 2).sum() + (np.diff(a, axis=0) ** 2).sum()
-
-    return energy(blur) / energy(image.astype(np.float64))
-
-
-def test_blur_energy_ratio_matches_reference():
-    """Boxes inside the image, at its edges and partly off it (clipped) against the whole-image numpy blur."""
-    from aamtrack.kernels import blur_energy_ratio
-
-    rng = np.random.default_rng(SEED)
-    image = (rng.normal(128, 40, (60, 80))).astype(np.float32)
-    taps = np.exp(-0.5 * np.arange(-3, 4) ** 2)
-    taps /= taps.sum()
-    for box in ((10, 12, 50, 40), (0, 0, 80, 60), (70, 50, 80, 60), (-5, -7, 20, 15)):
-        clipped = (max(box[0], 0), max(box[1], 0), min(box[2], 80), min(box[3], 60))
-        got = blur_energy_ratio(image, box, taps)
-        want = reference_blur_energy_ratio(image, clipped, taps)
-        assert abs(got - want) < 1e-5 * want  # float32 blur passes, float64 sums
-    assert 0.0 < blur_energy_ratio(image, (10, 12, 50, 40), taps) < 0.2  # white noise: the blur removes most of it
-    assert blur_energy_ratio(image, (100, 100, 120, 120), taps) == 0.0  # off the image
-    assert blur_energy_ratio(np.full((30, 30), 7.0, np.float32), (0, 0, 30, 30), taps) == 0.0  # flat

@@ -75,10 +75,12 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
     (n, 68, 2) (frame pixels), the AAM's final fits (M, 68, 2) of image ``fit_owner[m]``, and each image's group
     (an image and its mirror: one side of a hold-out). Each stage projects a point's descriptor on its
     ``n_components`` principal components (over all points and starts) before the regression; the last
-    ``shape_stages`` also read the points' shape (module docstring); with ``like`` (a cascade of the same stages),
-its reference shape, descriptor means and components instead (so that a cascade's last-stage descriptors, which the landmark
-validator weighs, mean the same in both). Returns (cascade, per-stage record)."""
+    ``shape_stages`` also read the points' shape (module docstring); with ``like`` (a cascade of the same
+    halves), its reference shape, descriptor means and components instead (so that a cascade's last-stage
+    descriptors, which the landmark validator weighs, mean the same in both). Returns (cascade, per-stage record)."""
     progress = progress or (lambda it, **_: it)
+    if like is not None and tuple(float(h) for h in halves) != like.halves:
+        raise ValueError(f"halves {tuple(halves)} differ from the cascade whose descriptors they share {like.halves}")
     ref = reference_shape(truth) if like is None else like.ref
     lib, real = [], []
     err = nme(fits, truth[fit_owner])

@@ -3,6 +3,7 @@ faces with known landmarks recovers known displacements."""
 
 import cv2
 import numpy as np
+import pytest
 
 from aamtrack.landmark_cascade import DescriptorSpec, similarity_to
 from aamtrack.metrics import nme
@@ -171,6 +172,9 @@ def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_fin
                                      rng=np.random.default_rng(SEED + 1), like=sharp, **kw)
     assert np.array_equal(soft.basis, sharp.basis) and np.array_equal(soft.basis_mean, sharp.basis_mean)
     assert np.array_equal(soft.ref, sharp.ref) and not np.array_equal(soft.regressors, sharp.regressors)
+    with pytest.raises(ValueError, match="halves"):  # another cascade's components fit only its own stages
+        learn_landmark_cascade(soft_gray[train], [1.0] * 80, truth[train], fits, np.arange(80), np.arange(80),
+                               rng=np.random.default_rng(SEED), like=sharp, **{**kw, "halves": (0.25, 0.18)})
     starts = _errors(truth[test], np.random.default_rng(SEED + 2), 0.05 * eye)
     on_soft = [(g, s) for g, s in zip(soft_gray[test], starts)]
     e_sharp = nme(np.array([sharp.apply(g, 1.0, s) for g, s in on_soft]), truth[test]).mean()

@@ -16,6 +16,7 @@ import numpy as np
 from ..detector import guess_points
 from ..imaging import Features, Levels, level_factor, level_shift, to_gray32
 from ..kernels import accumulate_gradient, project
+from ..landmark_cascade import LandmarkCascade, sharpness
 from ..mesh.candide import Candide
 from ..mesh.candide_model import candide_shape_model
 from ..mesh.corrective import with_corrective_units
@@ -29,7 +30,6 @@ from ..search import Searcher
 from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
 from .detection import box_geometry, training_boxes
 from .profile import profile_faces
-from ..landmark_cascade import LandmarkCascade, sharpness
 from .landmarks import learn_landmark_cascade
 from .octaves import Octaves, octave_factor
 from .shape2d import pca_shape_model, procrustes_mean
@@ -671,7 +671,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.landmark_blur_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 4))
             lmk_images, lmk_scales = lmk_images + b_images, lmk_scales + b_scales
-            lmk_truth, lmk_groups = pts[np.r_[np.arange(n_sharp), b_of]], owner_group[np.r_[np.arange(n_sharp), b_of]]
+            copied = np.r_[np.arange(n_sharp), b_of]  # each training image's source: itself, or the one blurred
+            lmk_truth, lmk_groups = pts[copied], owner_group[copied]
             fits_det, owner_det = np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_sharp + b_owner]
         landmark_cascade, lmk_record = learn_landmark_cascade(
             lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,

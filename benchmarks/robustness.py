@@ -21,9 +21,11 @@ Variants (each an image transform that moves the reference points with the image
     small30_hd (stills only: the same in a grey 1920x1080 frame, the eyes 30 px apart in 1920: what the
     detector, which shrinks large frames, must still find),
     rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
-    screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``); video only: rot_sweep (roll
-    30 sin(2 pi t / 10 s) degrees about the image centre), blank_black / blank_grey / blank_colour (uniform skin
-    tone) / blank_noise (uniform random pixels): 20 such frames inserted in the middle of the video.
+    screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``), dim_small (all at once, as in a
+    dim room: shrunk to 45 px between the eyes, blurred by 0.04 of that, dark_cast's gains, noise sigma 8);
+    video only: rot_sweep (roll 30 sin(2 pi t / 10 s) degrees about the image centre), blank_black /
+    blank_grey / blank_colour (uniform skin tone) / blank_noise (uniform random pixels): 20 such frames inserted
+    in the middle of the video.
     The scale of blur and small30 comes from the reference: per image for stills, the median over the frames
     used for the video (so the video keeps its natural changes of face size).
 Scores
@@ -98,6 +100,9 @@ SMALL_EYE_PX = 30.0
 ROTATION_DEG = 30.0
 SWEEP_PERIOD_S = 10.0
 GAP_FRAMES = 20
+DIM_EYE_PX = 45.0                # dim_small: the face shrunk to this eye distance (never enlarged),
+DIM_BLUR_EYE = 0.04              # blurred by this share of it, darkened by DARK_GAINS,
+DIM_NOISE = 8.0                  # and this sensor noise
 SKIN_BGR = (110, 140, 190)
 FILL_GREY = 128
 HD_FRAME = (1920, 1080)  # small30_hd's frame (w, h): stills only (3.7 GB for cap12's frames)
@@ -219,6 +224,18 @@ def shrink(image, points, *, scale: float, fill: int = FILL_GREY, frame: tuple |
     return out, affine_points(points, [[sx, 0.0, 0.5 * sx - 0.5 + x0], [0.0, sy, 0.5 * sy - 0.5 + y0]])
 
 
+def dim_small(image, points, *, scale: float, sigma: float, rng: np.random.Generator):
+    """A small, soft face in a dim room, as a camera makes it: shrunk by ``scale`` (when < 1, in a frame of grey
+    ``FILL_GREY``), blurred by ``sigma`` pixels, darkened by ``DARK_GAINS`` and given sensor noise of
+    ``DIM_NOISE`` grey levels. Each of these alone costs the tracker little; together they are what a stage or
+    an evening webcam gives."""
+    if scale < 1.0:
+        image, points = shrink(image, points, scale=scale)
+    image, points = blur(image, points, sigma=sigma)
+    image, points = dark_cast(image, points)
+    return add_noise(image, points, sigma=DIM_NOISE, rng=rng)
+
+
 BLANK_KINDS = ("black", "grey", "colour", "noise")
 
 
@@ -330,6 +347,10 @@ VARIANTS = (
     Variant(f"rot-{ROTATION_DEG:g}", f"rotated {ROTATION_DEG:g} deg clockwise",
             _each(rotate, lambda e: {"degrees": -ROTATION_DEG})),
     Variant("mirror", "left-right flip, points renumbered", _each(mirror)),
+    Variant("dim_small", f"shrunk to {DIM_EYE_PX:g} px between the outer eye corners, blurred by {DIM_BLUR_EYE:g} "
+            f"of that, B/G/R x {DARK_GAINS}, noise sigma {DIM_NOISE:g}",
+            _each(dim_small, lambda e: {"scale": min(1.0, DIM_EYE_PX / e), "sigma": DIM_BLUR_EYE * min(e, DIM_EYE_PX)},
+                  random=True)),
     Variant("rot_sweep", f"roll {ROTATION_DEG:g} sin(2 pi t / {SWEEP_PERIOD_S:g} s) deg", _sweep, stills=False),
 ) + tuple(Variant(f"blank_{k}", f"{GAP_FRAMES} {k} frames in the middle", _gap(k), stills=False)
           for k in BLANK_KINDS)

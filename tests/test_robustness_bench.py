@@ -129,6 +129,23 @@ def test_small30_variant_puts_the_eyes_30_px_apart():
                                np.array([60.0, 65.0, 70.0]) * 30.0 / 65.0, atol=0.1)
 
 
+def test_dim_small_variant_shrinks_to_45_px_never_enlarges_and_darkens():
+    rng = np.random.default_rng(SEED)
+    frames = [np.full((300, 400, 3), 200, np.uint8) for _ in range(2)]
+    pts = np.stack([_points(rng) for _ in range(2)])
+    pts[:, 36] = (100.0, 100.0)
+    pts[:, 45] = [(190.0, 100.0), (130.0, 100.0)]  # eye gaps 90 px (shrunk to 45) and 30 px (kept)
+    dim = next(v for v in rb.VARIANTS if v.name == "dim_small")
+    out, moved, is_face = dim.build(frames, pts, rng=rng, per_image=True)
+    np.testing.assert_allclose(np.linalg.norm(moved[:, 45] - moved[:, 36], axis=1), [45.0, 30.0], atol=0.1)
+    np.testing.assert_array_equal(moved[1], pts[1])  # a face already smaller than 45 px is not moved
+    assert is_face.all() and all(o.shape == f.shape for o, f in zip(out, frames))
+    # the light is dark_cast's: a flat 200 becomes about 200 x gain per channel, with noise of sd 8 on it
+    centre = out[1][100:200, 150:250].reshape(-1, 3).astype(float)
+    np.testing.assert_allclose(centre.mean(0), 200.0 * np.array(rb.DARK_GAINS), atol=1.0)
+    assert 6.0 < centre.std(0).min() < 10.0  # sensor noise sd 8 (the blur is before it)
+
+
 def test_small30_hd_variant_puts_the_eyes_30_px_apart_in_a_full_hd_frame():
     rng = np.random.default_rng(SEED)
     frames = [rng.integers(0, 256, size=(300, 400, 3), dtype=np.uint8) for _ in range(2)]

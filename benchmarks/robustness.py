@@ -224,14 +224,15 @@ def shrink(image, points, *, scale: float, fill: int = FILL_GREY, frame: tuple |
     return out, affine_points(points, [[sx, 0.0, 0.5 * sx - 0.5 + x0], [0.0, sy, 0.5 * sy - 0.5 + y0]])
 
 
-def dim_small(image, points, *, scale: float, sigma: float, rng: np.random.Generator):
-    """A small, soft face in a dim room, as a camera makes it: shrunk by ``scale`` (when < 1, in a frame of grey
-    ``FILL_GREY``), blurred by ``sigma`` pixels, darkened by ``DARK_GAINS`` and given sensor noise of
-    ``DIM_NOISE`` grey levels. Each of these alone costs the tracker little; together they are what a stage or
-    an evening webcam gives."""
-    if scale < 1.0:
-        image, points = shrink(image, points, scale=scale)
-    image, points = blur(image, points, sigma=sigma)
+def dim_small(image, points, *, eye_px: float, rng: np.random.Generator):
+    """A small, soft face in a dim room, as a camera makes it, for a face ``eye_px`` between the outer eye
+    corners: shrunk to ``DIM_EYE_PX`` (never enlarged; in a frame of grey ``FILL_GREY``), blurred by
+    ``DIM_BLUR_EYE`` of its eye distance then, darkened by ``DARK_GAINS`` and given sensor noise of ``DIM_NOISE``
+    grey levels. Each of these alone costs the tracker little; together they are what a stage or an evening
+    webcam gives."""
+    if eye_px > DIM_EYE_PX:
+        image, points = shrink(image, points, scale=DIM_EYE_PX / eye_px)
+    image, points = blur(image, points, sigma=DIM_BLUR_EYE * min(eye_px, DIM_EYE_PX))
     image, points = dark_cast(image, points)
     return add_noise(image, points, sigma=DIM_NOISE, rng=rng)
 
@@ -349,8 +350,7 @@ VARIANTS = (
     Variant("mirror", "left-right flip, points renumbered", _each(mirror)),
     Variant("dim_small", f"shrunk to {DIM_EYE_PX:g} px between the outer eye corners, blurred by {DIM_BLUR_EYE:g} "
             f"of that, B/G/R x {DARK_GAINS}, noise sigma {DIM_NOISE:g}",
-            _each(dim_small, lambda e: {"scale": min(1.0, DIM_EYE_PX / e), "sigma": DIM_BLUR_EYE * min(e, DIM_EYE_PX)},
-                  random=True)),
+            _each(dim_small, lambda e: {"eye_px": e}, random=True)),
     Variant("rot_sweep", f"roll {ROTATION_DEG:g} sin(2 pi t / {SWEEP_PERIOD_S:g} s) deg", _sweep, stills=False),
 ) + tuple(Variant(f"blank_{k}", f"{GAP_FRAMES} {k} frames in the middle", _gap(k), stills=False)
           for k in BLANK_KINDS)

@@ -27,14 +27,15 @@ from .errors import ModelFileError
 from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
 from .io.pts import N_LANDMARKS
-from .landmark_cascade import DescriptorSpec, LandmarkCascade, sharpness
+from .landmark_cascade import DescriptorSpec, LandmarkCascade, sharpness, signal_to_noise
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 7  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 8  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
 # 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
-# landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``)
+# landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``); 8: a second landmark
+# validator for dim, noisy faces (``dim_validator/*``, ``Model.dim_validator``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -90,13 +91,17 @@ class Validator:
     bias: float
     descriptor_weights: np.ndarray | None = None
 
-    def __call__(self, x: np.ndarray, z: np.ndarray | None = None) -> float:
+    def logit(self, x: np.ndarray, z: np.ndarray | None = None) -> float:
+        """The log-odds behind the confidence (0 at confidence 0.5)."""
         s = float(np.dot(self.weights, (np.asarray(x, float) - self.mean) / self.scale) + self.bias)
         if self.descriptor_weights is not None:
             if z is None:
                 raise ValueError("this validator reads the landmark descriptors too")
             s += float(np.dot(self.descriptor_weights, z))
-        return float(1.0 / (1.0 + np.exp(-np.clip(s, -50.0, 50.0))))
+        return s
+
+    def __call__(self, x: np.ndarray, z: np.ndarray | None = None) -> float:
+        return float(1.0 / (1.0 + np.exp(-np.clip(self.logit(x, z), -50.0, 50.0))))
 
 
 @dataclass(frozen=True)
@@ -119,6 +124,8 @@ class Model:
     landmark_validator: Validator | None = None  # the reported confidence, after the landmark cascade
     soft_cascade: LandmarkCascade | None = None  # the landmark cascade for faces softer than ``soft_above``
     soft_above: float = math.inf  # ``landmark_cascade.sharpness`` above which a face takes ``soft_cascade``
+    dim_validator: Validator | None = None  # the landmark validator for faces whose signal-to-noise is below
+    dim_below: float = 0.0  # this (``landmark_cascade.signal_to_noise``)
 
     @property
     def kind(self) -> str:
@@ -132,6 +139,17 @@ class Model:
         if self.soft_cascade is not None and sharpness(image, scale, pts) > self.soft_above:
             return self.soft_cascade
         return self.landmark_cascade
+
+    def validator_for(self, image: np.ndarray, scale: float, pts: np.ndarray) -> Validator | None:
+        """The landmark validator for the fit at pts (68, 2) (frame pixels, after the landmark cascade) in
+        ``image`` (the grey frame resampled by ``scale``): ``dim_validator`` when the face's contrast over the
+        image's noise (``signal_to_noise``) is below ``dim_below``, else ``landmark_validator``. One validator for
+        both kinds of face either refused good fits of small faces in a dim room (learned on each degradation
+        alone) or, learned on them too, accepted more bad fits of clear faces (benchmarks/README.md,
+        robustness)."""
+        if self.dim_validator is not None and signal_to_noise(image, scale, pts) < self.dim_below:
+            return self.dim_validator
+        return self.landmark_validator
 
     @property
     def n_params(self) -> int:
@@ -178,6 +196,10 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
         arrays["landmark_validator/scale"] = lv.scale
         arrays["landmark_validator/descriptor_weights"] = lv.descriptor_weights
+    dv = model.dim_validator
+    if dv is not None:
+        arrays["dim_validator/weights"], arrays["dim_validator/mean"] = dv.weights, dv.mean
+        arrays["dim_validator/scale"], arrays["dim_validator/descriptor_weights"] = dv.scale, dv.descriptor_weights
     meta = {
         "format_version": FORMAT_VERSION,
         "aamtrack_version": __version__,
@@ -194,6 +216,8 @@ def save_model(model: Model, path: str | Path) -> None:
                                                      "floor": lc.spec.floor},
         "landmark_validator": None if lv is None else {"names": list(lv.names), "bias": lv.bias},
         "soft_landmarks": None if sc is None else {"above": model.soft_above},
+        "dim_validator": None if dv is None else {"names": list(dv.names), "bias": dv.bias,
+                                                  "below": model.dim_below},
         "config": model.config,
     }
     arrays["meta"] = np.array(json.dumps(meta))
@@ -384,11 +408,13 @@ def _read(c: _Checker, meta: dict) -> Model:
     if lv is not None and lc is None:
         c.fail("a landmark validator without a landmark cascade")
     soft, above = _soft_cascade(c, meta.get("soft_landmarks"), lc)
+    n_z = 0 if lc is None else N_LANDMARKS * lc.basis.shape[2]
+    dim, below = _dim_validator(c, meta.get("dim_validator"), lv, n_z)
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
                  landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv,
                                                                        N_LANDMARKS * lc.basis.shape[2]),
-                 soft_cascade=soft, soft_above=above)
+                 soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below)
 
 
 def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
@@ -409,6 +435,21 @@ def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
     if (v.scale <= 0).any() or not np.isfinite(v.bias):
         c.fail(f"{key} scale or bias out of range")
     return v
+
+
+def _dim_validator(c: _Checker, spec: dict | None, lv: dict | None, n_descriptor: int) -> tuple:
+    """(validator for dim faces or None, its signal-to-noise threshold)."""
+    if spec is None:
+        return None, 0.0
+    if lv is None:
+        c.fail("a validator for dim faces without a landmark validator")
+    try:
+        below = float(spec["below"])
+    except (KeyError, TypeError, ValueError):
+        c.fail("unreadable dim_validator settings")
+    if not 0.0 <= below <= 1e3:
+        c.fail(f"dim_validator threshold {below} outside 0..1000")
+    return _validator(c, "dim_validator", spec, n_descriptor), below
 
 
 def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:

@@ -26,6 +26,8 @@ class FitResult:
     landmark_prior : (68, 2) float64 or None -- the part of the landmark cascade's move of the points that its
         stages' shape term made (``LandmarkCascade.run``): what the points' shape says of itself rather than the
         image; None before the cascade
+    dim : bool -- the confidence is the validator for dim faces' (``Model.validator_for``): the face's contrast
+        over the image's noise is low
     """
 
     p: np.ndarray
@@ -36,6 +38,7 @@ class FitResult:
     stats: tuple = ()
     confidence: float = 0.0
     landmark_prior: np.ndarray | None = None
+    dim: bool = False
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,10 @@ def test_round_trip(tmp_path, synth_model):
     assert m.soft_above == synth_model.soft_above and np.array_equal(sc.regressors, sc0.regressors)
     assert np.array_equal(sc.biases, sc0.biases) and np.array_equal(sc.shape_regressors, sc0.shape_regressors)
     assert sc.basis is m.landmark_cascade.basis and sc.ref is m.landmark_cascade.ref  # stored once, shared
+    dv, dv0 = m.dim_validator, synth_model.dim_validator
+    assert dv0 is not None and synth_model.dim_below > 0  # the synthetic model has one too
+    assert m.dim_below == synth_model.dim_below and dv.bias == dv0.bias
+    assert np.array_equal(dv.weights, dv0.weights) and np.array_equal(dv.descriptor_weights, dv0.descriptor_weights)
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
 
 
@@ -51,6 +55,25 @@ def test_soft_faces_take_the_soft_cascade(synth_model, synth_data):
         synth_model.landmark_cascade
     assert replace(synth_model, soft_cascade=None, soft_above=0.0).cascade_for(gray, 1.0, points[0]) is \
         synth_model.landmark_cascade
+
+
+def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
+    """``Model.validator_for``: a face whose signal-to-noise is below the threshold takes the validator for dim
+    faces, above it the landmark validator (the threshold moved about the face's own value); a model without one
+    always takes the landmark validator."""
+    from dataclasses import replace
+
+    from aamtrack.landmark_cascade import signal_to_noise
+
+    images, points = synth_data
+    gray = cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY).astype(np.float32) if images[0].ndim == 3 else \
+        images[0].astype(np.float32)
+    s = signal_to_noise(gray, 1.0, points[0])
+    assert s > 0
+    m = synth_model
+    assert replace(m, dim_below=s + 0.01).validator_for(gray, 1.0, points[0]) is m.dim_validator
+    assert replace(m, dim_below=s - 0.01).validator_for(gray, 1.0, points[0]) is m.landmark_validator
+    assert replace(m, dim_validator=None, dim_below=1e3).validator_for(gray, 1.0, points[0]) is m.landmark_validator
 
 
 def _rewrite_meta(path, out, **changes):
@@ -142,13 +165,20 @@ def _damaged(synth_model):
         ("soft cascade without cascade", {}, {"landmark_cascade": None, "landmark_validator": None},
          "soft landmark cascade without a landmark cascade"),
         ("soft regressors of another size", {"soft_landmarks/biases": np.zeros((1, 136))}, {}, "has shape"),
+        ("dim validator threshold", {}, {"dim_validator": {"names": list(synth_model.dim_validator.names),
+                                                           "bias": 0.0, "below": -1.0}}, "outside 0..1000"),
+        ("unreadable dim validator", {}, {"dim_validator": {"names": ["a"], "bias": 0.0}}, "unreadable dim_validator"),
+        ("dim validator without landmark validator", {}, {"landmark_validator": None},
+         "dim faces without a landmark validator"),
+        ("dim descriptor weights length", {"dim_validator/descriptor_weights":
+                                           synth_model.dim_validator.descriptor_weights[:-1]}, {}, "has shape"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(23))
+@pytest.mark.parametrize("case", range(27))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

@@ -319,11 +319,11 @@ class Tracker:
         t_pyr = time.perf_counter() - t0
         res, t = self.fit_roi(image, [start], shape_params, first=self.skip_tracked, crop=crop, last=last)
         t_pyr += t
-        if res.confidence < cfg.coarser_below and self.skip_tracked > cfg.skip_coarse:
+        if (res.confidence < cfg.coarser_below or res.dim) and self.skip_tracked > cfg.skip_coarse:
             # the same start on the same crop and levels, with the coarser couple too
             alt, t = self.fit_roi(image, [start], shape_params, first=cfg.skip_coarse, crop=crop, last=last)
             t_pyr += t
-            if alt.confidence > res.confidence:
+            if alt.confidence > res.confidence or (res.dim and alt.confidence >= res.confidence):
                 res = alt
         return res, t_pyr
 

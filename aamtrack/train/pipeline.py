@@ -16,7 +16,7 @@ import numpy as np
 from ..detector import guess_points
 from ..imaging import Features, Levels, level_factor, level_shift, to_gray32
 from ..kernels import accumulate_gradient, project
-from ..landmark_cascade import LandmarkCascade, sharpness
+from ..landmark_cascade import LandmarkCascade, sharpness, signal_to_noise
 from ..mesh.candide import Candide
 from ..mesh.candide_model import candide_shape_model
 from ..mesh.corrective import with_corrective_units
@@ -36,7 +36,8 @@ from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
-from .validator import degraded, landmark_validator_fit, logistic_fit, non_face_images
+from .validator import (dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
+                        landmark_validator_fit, logistic_fit, non_face_images)
 
 log = logging.getLogger(__name__)
 
@@ -117,7 +118,12 @@ class TrainConfig:
     confidence reported after the cascade, from full fits of the training photos: from each one's Haar box, from
     its shape fit moved a little (as a tracked frame starts), from
     ``validator_negatives`` random boxes away from its face, and on non-face images; the same again on a copy of
-    a share ``validator_degraded`` of the photos, blurred, noisy, dark or flat (``train.validator.degraded``)."""
+    a share ``validator_degraded`` of the photos, blurred, noisy, dark or flat (``train.validator.degraded``).
+    dim_validator: with a landmark validator, a second one for dim, noisy faces (``Model.dim_validator``), which
+    takes a fit whose ``landmark_cascade.signal_to_noise`` is below this (0: none); learned as the first from
+    a copy of every photo made small, soft, dark and noisy at once (``train.validator.dim_copy``). The
+    landmark validator alone, having learned each degradation apart, refused good fits of such faces; learned on
+    them too, it accepted more bad fits of clear ones (benchmarks/README.md, robustness: dim_small)."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"
@@ -156,6 +162,7 @@ class TrainConfig:
     landmark_validator: bool = True
     validator_negatives: int = 2
     validator_degraded: float = 0.5
+    dim_validator: float = 4.5
     seed: int = 0
 
     def __post_init__(self):
@@ -499,9 +506,15 @@ def _validator(model: Model, feats_fine, factors_fine, P, Pfinal, owner, points,
 
 
 def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: int, rng: np.random.Generator,
-                        config: TrainConfig) -> Validator:
+                        config: TrainConfig, *, dim_below: float = 0.0, held_out: bool = False) -> tuple:
     """Learn the landmark validator (``train.validator.landmark_validator_fit``) from full fits (search and
-    landmark cascade, as a still is fitted) of the training photos (not their mirrors); see ``TrainConfig``."""
+    landmark cascade, as a still is fitted) of the training photos (not their mirrors); see ``TrainConfig``.
+    ``dim_below`` > 0: the validator for dim faces instead, from a dim copy of every photo (``dim_copy``), its
+    fits kept where their ``signal_to_noise`` is below twice ``dim_below`` (the faces it will judge, and a margin
+    about the threshold), and from non-face images with a dark one among them; the cascade each fit takes is the
+    one the tracker would pick (``Model.cascade_for``); None when under 20 fits of either kind are left.
+    Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else
+    None)."""
     searcher = Searcher(model)
     sm, lc = model.shape, model.landmark_cascade
     S, Z, y = [], [], []
@@ -509,7 +522,11 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     def add(levels, p0, truth):
         r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
         res = searcher.fit(levels, p0, landmarks=False)
-        pts, z, _ = lc.run(levels.resampled(r), r, res.landmarks)  # as ``refine_landmarks`` runs it
+        img = levels.resampled(r)
+        cascade = model.cascade_for(img, r, res.landmarks) if dim_below > 0 else lc
+        pts, z, _ = cascade.run(img, r, res.landmarks)  # as ``refine_landmarks`` runs it
+        if dim_below > 0 and truth is not None and signal_to_noise(img, r, pts) >= 2 * dim_below:
+            return
         if truth is not None:
             e = float(nme(pts, truth))
             if 0.06 <= e <= 0.10:  # neither clearly on the face nor clearly off it
@@ -525,9 +542,13 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
 
     for i in range(n_orig):
         truth = pts[i]
-        versions = [gray[i]]
-        if rng.random() < config.validator_degraded:
-            versions.append(degraded(gray[i], float(np.linalg.norm(truth[45] - truth[36])), rng))
+        eye = float(np.linalg.norm(truth[45] - truth[36]))
+        if dim_below > 0:
+            versions = [dim_copy(gray[i], eye, rng)]
+        else:
+            versions = [gray[i]]
+            if rng.random() < config.validator_degraded:
+                versions.append(degraded(gray[i], eye, rng))
         for img in versions:
             levels = Levels(img, model.features)
             if np.isfinite(boxes[i, 0]):
@@ -548,11 +569,19 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
                         add(levels, start((x, y0, s, s), rng.uniform(-0.6, 0.6)), truth)
                         break
         if i % 8 == 0 and np.isfinite(boxes[i, 0]):  # non-face images where the face was
-            for blank in non_face_images(gray[i].shape, rng):
+            blanks = non_face_images(gray[i].shape, rng)
+            if dim_below > 0:
+                blanks.append(dark_noise_image(gray[i].shape, rng))
+            for blank in blanks:
                 add(Levels(blank, model.features), start(boxes[i]), None)
     y = np.array(y)
-    log.info("landmark validator: %d positives, %d negatives", int(y.sum()), int(len(y) - y.sum()))
-    return landmark_validator_fit(np.array(S), np.array(Z), y, STAT_NAMES)
+    log.info("%s: %d positives, %d negatives", "validator for dim faces" if dim_below > 0 else "landmark validator",
+             int(y.sum()), int(len(y) - y.sum()))
+    if dim_below > 0 and min(y.sum(), len(y) - y.sum()) < 20:
+        log.info("validator for dim faces: too few fits of either kind, none learned")
+        return None, y, None
+    S, Z = np.array(S), np.array(Z)
+    return landmark_validator_fit(S, Z, y, STAT_NAMES), y, held_out_logits(S, Z, y, STAT_NAMES) if held_out else None
 
 
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
@@ -691,23 +720,39 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             soft_record.append({"gate": gate})  # after the stages' records
     del fine_gray
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
-    landmark_validator = None
+    landmark_validator = dim_validator = dim_record = None
     if landmark_cascade is not None and config.landmark_validator:
-        landmark_validator = _landmark_validator(
-            replace(model, validator=validator, landmark_cascade=landmark_cascade, soft_cascade=soft_cascade,
-                    soft_above=soft_above), gray, pts, P, boxes, box_points,
-            n_orig, np.random.default_rng(config.seed + 5), config)
+        lmk_model = replace(model, validator=validator, landmark_cascade=landmark_cascade, soft_cascade=soft_cascade,
+                            soft_above=soft_above)
+        dim = config.dim_validator > 0
+        landmark_validator, y0, logit0 = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
+                                                             np.random.default_rng(config.seed + 5), config,
+                                                             held_out=dim)
+        if dim:
+            dim_validator, y1, logit1 = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
+                                                            np.random.default_rng(config.seed + 8), config,
+                                                            dim_below=config.dim_validator, held_out=True)
+            if dim_validator is not None:  # as wary of non-faces as the landmark validator, held out
+                rate = float(np.mean(logit0[y0 < 0.5] >= 0))
+                shift = false_accept_shift(logit1[y1 < 0.5], rate)
+                dim_validator = replace(dim_validator, bias=dim_validator.bias - shift)
+                dim_record = {"false_accepts": rate, "false_accepts_before": float(np.mean(logit1[y1 < 0.5] >= 0)),
+                              "false_rejects": float(np.mean(logit1[y1 > 0.5] < shift)), "bias_shift": shift}
+                log.info("validator for dim faces: held out, %.2f%% of negatives accepted (the landmark "
+                         "validator's %.2f%%) after lowering its bias by %.2f", 100 * float(np.mean(
+                             logit1[y1 < 0.5] >= shift)), 100 * rate, shift)
     n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
                "landmark_s": t_lmk,
                "landmark_validator_s": time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val - t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
-           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record,
+           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record, "dim_validator_fit": dim_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
            "train_final_nme_median": float(np.median(final_err[:n0])), "timings": timings}
     log.info("training starts: median NME %.4f -> %.4f after the search", cfg["train_start_nme_median"],
              cfg["train_final_nme_median"])
     model = Model(shape=sm, features=features, textures=tuple(textures), couples=tuple(couples),
                   detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade,
-                  landmark_validator=landmark_validator, soft_cascade=soft_cascade, soft_above=soft_above)
+                  landmark_validator=landmark_validator, soft_cascade=soft_cascade, soft_above=soft_above,
+                  dim_validator=dim_validator, dim_below=config.dim_validator if dim_validator is not None else 0.0)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

@@ -151,6 +151,34 @@ def test_sharpness_tells_blurred_faces_whatever_their_contrast_and_noise():
     assert sharpness(gray[0], 1.0, truth[0] + 1000.0) == 0.0  # off the image
 
 
+def test_signal_to_noise_reads_the_added_noise_and_calls_dim_noisy_faces_low():
+    """``signal_to_noise``: with Gaussian noise well above the face's own fine texture, the box's contrast over
+    (0.5 + the noise's sigma) to 15%; it falls as the noise grows; a face at a third of the light with noise of 6
+    grey levels reads below the dim threshold the models use (4.5), the same face clean above 10."""
+    from aamtrack.landmark_cascade import signal_to_noise
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(10, rng, size=(150, 150), scale=85.0)
+    gray = [im.astype(np.float32) for im in images]
+    by_sigma = []
+    for sigma in (2.0, 8.0, 16.0):
+        row = []
+        for g, P in zip(gray, truth):
+            lo, hi = np.floor(P.min(0)).astype(int), np.ceil(P.max(0)).astype(int) + 1
+            contrast = float(g[max(lo[1], 0):hi[1], max(lo[0], 0):hi[0]].std())
+            snr = signal_to_noise(g + rng.normal(0.0, sigma, g.shape).astype(np.float32), 1.0, P)
+            if sigma >= 8:
+                assert abs(snr / (contrast / (sigma + 0.5)) - 1) < 0.15  # the added noise's sigma, to 15%
+            row.append(snr)
+        by_sigma.append(row)
+    by_sigma = np.array(by_sigma)
+    assert (np.diff(by_sigma, axis=0) < 0).all()  # more noise, lower on every face
+    for g, P in zip(gray, truth):
+        assert signal_to_noise(g, 1.0, P) > 10.0
+        assert signal_to_noise(0.3 * g + 40.0 + rng.normal(0.0, 6.0, g.shape).astype(np.float32), 1.0, P) < 4.5
+    assert signal_to_noise(np.full((150, 150), 90, np.float32), 1.0, truth[0]) == 0.0  # flat: no signal
+    assert signal_to_noise(gray[0], 1.0, truth[0] + 1000.0) == 0.0  # off the image
+
 def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_finds_them():
     """A second cascade learned on blurred copies alone, with the first one's descriptor components (``like``),
     fits held-out blurred faces closer than the sharp cascade does, and ``_soft_threshold`` puts its gate between

@@ -60,3 +60,61 @@ def test_degraded_copies_differ_and_keep_the_image_format():
         # adds spread
         seen.add("dark" if out.mean() < 0.6 * gray.mean() else "other")
     assert seen == {"dark", "other"} and len(DEGRADATIONS) == 4
+
+
+def test_held_out_logits_see_the_errors_the_training_fit_hides():
+    """``held_out_logits``: on a rule the validator cannot learn perfectly, the samples scored by fits that did
+    not see them err at least about as often as fresh samples do (more: each fit saw half the samples), where the
+    samples' own fit flatters itself."""
+    from aamtrack.train.validator import held_out_logits
+
+    rng = np.random.default_rng(SEED)
+    S, Z, y = _problem(rng, n=1600, d=400)  # many descriptors for the samples: room to overfit
+    names = ("a", "b", "c")
+    held = held_out_logits(S[:800], Z[:800], y[:800], names, l2=0.001)
+    own = landmark_validator_fit(S[:800], Z[:800], y[:800], names, l2=0.001)
+    own_err = np.mean([(own.logit(s, z) >= 0) != (t > 0.5) for s, z, t in zip(S[:800], Z[:800], y[:800])])
+    fresh_err = np.mean([(own.logit(s, z) >= 0) != (t > 0.5) for s, z, t in zip(S[800:], Z[800:], y[800:])])
+    held_err = np.mean((held >= 0) != (y[:800] > 0.5))
+    assert own_err < 0.5 * fresh_err  # the training fit flatters itself (here 0 against 0.19)
+    assert 0.8 * fresh_err < held_err < 2.0 * fresh_err  # held out: the error on fresh samples (here 0.27)
+
+
+def test_false_accept_shift_leaves_the_rate_asked():
+    """``false_accept_shift``: after lowering by the shift, at most the asked share of negatives keeps a logit
+    of 0 or more, and one more would have stayed with a smaller shift; nothing to do when few enough are."""
+    from aamtrack.train.validator import false_accept_shift
+
+    rng = np.random.default_rng(SEED)
+    neg = rng.normal(-2.0, 1.5, 1000)
+    for rate in (0.003, 0.01, 0.05):
+        shift = false_accept_shift(neg, rate)
+        assert np.sum(neg - shift >= 0) <= rate * len(neg) and shift > 0
+        assert np.sum(neg - 0.999 * shift >= 0) > np.sum(neg - shift >= 0)  # not lowered more than needed
+    assert false_accept_shift(neg, 0.5) == 0.0  # already fewer than half at or above 0
+    assert false_accept_shift(np.array([]), 0.01) == 0.0
+
+
+def test_dim_copies_are_dark_or_flat_and_noisy_and_keep_the_image_format():
+    """``dim_copy``: every copy has less contrast and more noise than the image (``signal_to_noise`` well below
+    the original's, most below the models' dim threshold of 4.5 for a face of 100 px)."""
+    import cv2
+
+    from aamtrack.landmark_cascade import signal_to_noise
+    from aamtrack.train.validator import dim_copy, dark_noise_image
+
+    rng = np.random.default_rng(SEED)
+    yy, xx = np.mgrid[0:200, 0:200].astype(np.float32)
+    gray = cv2.GaussianBlur(rng.uniform(0, 255, (200, 200)).astype(np.float32), (0, 0), 6.0) * 2.0 - 128.0
+    gray = np.clip(gray + 0.3 * xx, 0, 255).astype(np.float32)
+    box = np.array([[50.0, 50.0], [150.0, 150.0]])
+    snr0 = signal_to_noise(gray, 1.0, box)
+    snr = []
+    for _ in range(30):
+        out = dim_copy(gray, 100.0, rng)
+        assert out.shape == gray.shape and out.dtype == np.float32
+        assert out.std() < gray.std()  # less contrast (noise included)
+        snr.append(signal_to_noise(out, 1.0, box))
+    assert max(snr) < 0.5 * snr0 and np.median(snr) < 4.5
+    dark = dark_noise_image((60, 70), rng)
+    assert dark.shape == (60, 70) and dark.dtype == np.float32 and 5 < dark.mean() < 45 and dark.std() > 2

@@ -124,10 +124,11 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
     (0.5 grey levels + the noise's standard deviation, estimated as the median absolute Laplacian / 0.6745 /
-    sqrt(20), which edges barely move). A small, dim, noisy face reads 1.7-3.7 (robustness suite's dim_small on
-    helen_test, 5th-95th percentile), a clean photo 13-44, the suite's other variants at least 4.8 (noise of 25
-    grey levels). 0 for a box under 8 pixels a side or off the image. What picks the model's validator for dim
-    noisy faces (``Model.validator_for``)."""
+    sqrt(20), which edges barely move). helen_test at the 3D model's finest couple (5th-95th percentile): clean
+    13-44, under the robustness suite's other variants at least 4.8 (noise of 25 grey levels 4.8-15), made small
+    and dim (dim_small) 1.7-3.7; cap12, whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9.
+    0 for a box under 8 pixels a side or off the image. What picks the model's validator for dim, noisy faces
+    (``Model.validator_for``)."""
     q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
     lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):

@@ -139,9 +139,13 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     if x1 - x0 < 8 or y1 - y0 < 8:
         return 0.0
     c = np.asarray(image[y0:y1, x0:x1], np.float32)
-    lap = 4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:]
-    noise = float(np.median(np.abs(lap))) / (0.6745 * math.sqrt(20.0))
-    return float(c.std()) / (noise + 0.5)
+    lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:]).ravel()
+    k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time)
+    part = np.partition(lap, (k - 1, k))
+    med = part[k] if lap.size % 2 else (part[k - 1] + part[k]) / np.float32(2.0)
+    noise = float(med) / (0.6745 * math.sqrt(20.0))
+    _, sd = cv2.meanStdDev(c)  # in float64: c.std()'s float32 passes to 1e-6, in a fifth of the time
+    return float(sd[0, 0]) / (noise + 0.5)
 
 
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:

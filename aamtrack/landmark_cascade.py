@@ -82,6 +82,22 @@ def shape_features(ref: np.ndarray, pts: np.ndarray, M: np.ndarray) -> np.ndarra
 SHARPNESS_SIGMAS = (1.5, 3.0)  # pixels of the image the cascade reads (the face about its finest couple's width)
 
 
+def _face_box(shape: tuple, scale: float, pts: np.ndarray, pad: int, min_side: int) -> tuple | None:
+    """(x0, y0, x1, y1): the box of the points pts (68, 2) (frame pixels) in an image of ``shape`` (H, W) resampled
+    by ``scale``, grown by ``pad`` pixels and cut to the image; None when a point is not finite or a side is
+    under ``min_side`` (what ``sharpness`` and ``signal_to_noise`` read)."""
+    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
+    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return None
+    h, w = shape
+    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
+    x1, y1 = min(int(hi[0]) + pad, w), min(int(hi[1]) + pad, h)
+    if x1 - x0 < min_side or y1 - y0 < min_side:
+        return None
+    return x0, y0, x1, y1
+
+
 def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """How soft the face looks, 0..1: the gradient energy of the image blurred by ``SHARPNESS_SIGMAS[1]`` pixels
     over that of it blurred by ``SHARPNESS_SIGMAS[0]``, on the box of the points pts (68, 2) (frame pixels) in
@@ -93,17 +109,12 @@ def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     that noise 0.63-0.80. 0 for a flat box or one off the image. What picks the soft landmark cascade
     (``Model.soft_cascade``)."""
     s1, s2 = SHARPNESS_SIGMAS
-    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
-    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        return 0.0
-    h, w = image.shape
     pad = int(math.ceil(2 * s2))  # even: the half-size patch's margin is pad / 2 whole pixels
     pad += pad % 2
-    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
-    x1, y1 = min(int(hi[0]) + pad, w), min(int(hi[1]) + pad, h)
-    if x1 - x0 < 2 * pad + 4 or y1 - y0 < 2 * pad + 4:
+    box = _face_box(image.shape, scale, pts, pad, 2 * pad + 4)
+    if box is None:
         return 0.0  # no face-sized box inside the image
+    x0, y0, x1, y1 = box
     half = cv2.resize(np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32), None, fx=0.5, fy=0.5,
                       interpolation=cv2.INTER_AREA)
     a = cv2.GaussianBlur(half, (0, 0), 0.5 * s1, borderType=cv2.BORDER_REPLICATE)
@@ -119,7 +130,6 @@ def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     return energy(b) / e if e > 1e-6 else 0.0
 
 
-
 def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
@@ -129,15 +139,10 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     and dim (dim_small) 1.7-3.7; cap12, whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9.
     0 for a box under 8 pixels a side or off the image. What picks the model's validator for dim, noisy faces
     (``Model.validator_for``)."""
-    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
-    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+    box = _face_box(image.shape, scale, pts, 0, 8)
+    if box is None:
         return 0.0
-    h, w = image.shape
-    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-    x1, y1 = min(int(hi[0]), w), min(int(hi[1]), h)
-    if x1 - x0 < 8 or y1 - y0 < 8:
-        return 0.0
+    x0, y0, x1, y1 = box
     c = np.asarray(image[y0:y1, x0:x1], np.float32)
     lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:]).ravel()
     k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time)

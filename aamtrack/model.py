@@ -412,8 +412,7 @@ def _read(c: _Checker, meta: dict) -> Model:
     dim, below = _dim_validator(c, meta.get("dim_validator"), lv, n_z)
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
-                 landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv,
-                                                                       N_LANDMARKS * lc.basis.shape[2]),
+                 landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv, n_z),
                  soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below)
 
 

@@ -738,9 +738,9 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                 dim_validator = replace(dim_validator, bias=dim_validator.bias - shift)
                 dim_record = {"false_accepts": rate, "false_accepts_before": float(np.mean(logit1[y1 < 0.5] >= 0)),
                               "false_rejects": float(np.mean(logit1[y1 > 0.5] < shift)), "bias_shift": shift}
-                log.info("validator for dim faces: held out, %.2f%% of negatives accepted (the landmark "
-                         "validator's %.2f%%) after lowering its bias by %.2f", 100 * float(np.mean(
-                             logit1[y1 < 0.5] >= shift)), 100 * rate, shift)
+                log.info("validator for dim faces: held out, %.2f%% of negatives accepted before (the landmark "
+                         "validator's %.2f%%), its bias lowered by %.2f to match",
+                         100 * dim_record["false_accepts_before"], 100 * rate, shift)
     n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
                "landmark_s": t_lmk,

@@ -238,7 +238,8 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
     images : sequence of (h, w, 3) uint8 BGR arrays
     model_path : path of a model ``.npz``
     still : bool
-        True: every image is a separate one-frame ``track()`` call (detection, then search). False: one
+        True: every image fitted on its own as ``aamtrack fit`` fits it (``Tracker.fit_still``: detection, then
+        search, on the image and on its mirror, the points averaged). False: one
         ``track()`` over all images in order (detection, then tracking, re-detection after a loss).
     fps : float
         Frame rate for the video timestamps.
@@ -259,7 +260,10 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
     warmup(tracker)
     setup_s = time.perf_counter() - t0
     if still:
-        runs = (tracker.track([ReplayFrame(0, 0.0, image)]) for image in images)
+        def one(image):  # a generator, so ``timed`` times the fit: as ``aamtrack fit`` fits it, mirror too
+            yield tracker.fit_still(ReplayFrame(0, 0.0, image))
+
+        runs = (one(image) for image in images)
     else:
         runs = [tracker.track(ReplayFrame(i, i / fps, image) for i, image in enumerate(images))]
     landmarks, times, walls, found, status = [], [], [], [], []

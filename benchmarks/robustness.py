@@ -450,8 +450,9 @@ class _Frame:
 
 
 class Aamtrack:
-    """One model's tracker. ``track(images)``: one track over a video; ``fit_each(images)``: every image as a
-    one-frame video with a fresh track. Both return success (n,) bool and landmarks (n, 68, 2) pixels."""
+    """One model's tracker. ``track(images)``: one track over a video; ``fit_each(images)``: every image fitted on
+    its own as ``aamtrack fit`` fits it (``Tracker.fit_still``, the mirror too). Both return success (n,) bool
+    and landmarks (n, 68, 2) pixels."""
 
     def __init__(self, model_path):
         from aamtrack.model import load_model
@@ -465,7 +466,7 @@ class Aamtrack:
         return _collect(self._tracker.track(_Frame(i, i / FPS, im) for i, im in enumerate(images)))
 
     def fit_each(self, images):
-        return _collect(r for im in images for r in self._tracker.track([_Frame(0, 0.0, im)]))
+        return _collect(self._tracker.fit_still(_Frame(0, 0.0, im)) for im in images)  # as ``aamtrack fit``
 
 
 def _collect(results):

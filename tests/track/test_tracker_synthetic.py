@@ -778,3 +778,42 @@ def test_blurred_frames_take_the_soft_landmark_cascade(synth_model):
     moved = [not np.allclose(r.landmarks, q.landmarks) for r, q in zip(fit(synth_model, soft), fit(off, soft))
              if r.success and q.success]
     assert len(moved) >= 3 and all(moved)  # soft: the soft cascade's points
+
+
+def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
+    """``Tracker.fit_still`` averages the image's fit with its mirror's, moved back: the moved-back points must
+    land where the face is (a slip of the mirror's pixel convention would shift every x by about a pixel or two:
+    width - 1 - x against width + 1 - x), and the average is what the still reports."""
+    from aamtrack.mesh.landmarks import mirror_points
+    from aamtrack.track.replay import ReplayFrame
+
+    images, truth = synth.random_faces(4, np.random.default_rng(SEED + 31), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    own_dx, back_dx = [], []
+    for img, pts in zip(images, truth):
+        own = tracker.fit_still(ReplayFrame(0, 0.0, img), mirror=False)
+        flip = tracker.fit_still(ReplayFrame(0, 0.0, np.ascontiguousarray(img[:, ::-1])), mirror=False)
+        both = tracker.fit_still(ReplayFrame(0, 0.0, img))
+        assert own.success and flip.success and both.success
+        back = mirror_points(flip.landmarks, img.shape[1])
+        own_dx.append((own.landmarks - pts)[:, 0].mean())
+        back_dx.append((back - pts)[:, 0].mean())
+        assert np.allclose(both.landmarks, 0.5 * (own.landmarks + back))
+        assert both.confidence == pytest.approx(0.5 * (own.confidence + flip.confidence))
+        assert np.array_equal(both.rotation, own.rotation)  # the pose stays the image's own fit's
+        assert np.linalg.norm(both.landmarks - pts, axis=1).mean() < 0.5  # sub-pixel, as a single fit
+    assert abs(np.mean(back_dx)) < 0.4 and abs(np.mean(own_dx)) < 0.4, (own_dx, back_dx)  # no pixel slip
+
+
+def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
+    """A blank still stays lost whether mirrored or not; the mirror is fitted only after an accepted fit."""
+    from aamtrack.track.replay import ReplayFrame
+
+    tracker = Tracker(synth_model)
+    calls = []
+    track = tracker.track
+    tracker.track = lambda frames: (calls.append(1), track(frames))[1]  # counts the fits, runs them as they are
+    for img in (np.full((220, 220), 128, np.uint8), np.zeros((220, 220, 3), np.uint8)):
+        res = tracker.fit_still(ReplayFrame(0, 0.0, img))
+        assert not res.success and np.isnan(res.landmarks).all()
+    assert len(calls) == 2

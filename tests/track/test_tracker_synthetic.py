@@ -783,7 +783,8 @@ def test_blurred_frames_take_the_soft_landmark_cascade(synth_model):
 def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
     """``Tracker.fit_still`` averages the image's fit with its mirror's, moved back: the moved-back points must
     land where the face is (a slip of the mirror's pixel convention would shift every x by about a pixel or two:
-    width - 1 - x against width + 1 - x), and the average is what the still reports."""
+    width - 1 - x against width + 1 - x), and the average is what the still reports, unless the two disagree by
+    more than ``agree``, when the image's own fit stands."""
     from aamtrack.mesh.landmarks import mirror_points
     from aamtrack.track.replay import ReplayFrame
 
@@ -802,6 +803,8 @@ def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
         assert both.confidence == pytest.approx(0.5 * (own.confidence + flip.confidence))
         assert np.array_equal(both.rotation, own.rotation)  # the pose stays the image's own fit's
         assert np.linalg.norm(both.landmarks - pts, axis=1).mean() < 0.5  # sub-pixel, as a single fit
+        strict = tracker.fit_still(ReplayFrame(0, 0.0, img), agree=0.0)  # any distance is a disagreement
+        assert np.array_equal(strict.landmarks, own.landmarks) and strict.confidence == own.confidence
     assert abs(np.mean(back_dx)) < 0.4 and abs(np.mean(own_dx)) < 0.4, (own_dx, back_dx)  # no pixel slip
 
 

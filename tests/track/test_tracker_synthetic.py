@@ -820,3 +820,38 @@ def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
         res = tracker.fit_still(ReplayFrame(0, 0.0, img))
         assert not res.success and np.isnan(res.landmarks).all()
     assert len(calls) == 2
+
+
+def test_a_dim_fit_needs_less_confidence_only_where_a_face_just_was(synth_model):
+    """``dim_tracked_min`` applies to fits judged dim (``FitResult.dim``) that follow the previous frame's fit or
+    lie near a recently accepted one (``Tracker._near``); a fresh dim detection, or a clear face's fit, still
+    needs ``min_confidence``."""
+    from dataclasses import replace
+
+    tracker = Tracker(synth_model)
+    cfg = tracker.config
+    assert cfg.dim_tracked_min < 0.3 < cfg.min_confidence
+    images, _ = synth.random_faces(1, np.random.default_rng(SEED + 41), size=(220, 220), scale=130.0)
+    res, _ = tracker.detect_and_fit(images[0])
+    assert res is not None and not tracker.loss_reason(res, (220, 220), None)
+    dim = replace(res, confidence=0.3, dim=True)
+    clear = replace(res, confidence=0.3, dim=False)
+    shape = (220, 220)
+    assert tracker.loss_reason(dim, shape, None).startswith("low confidence")  # a fresh detection
+    assert tracker.loss_reason(dim, shape, res.p) == ""  # following the previous frame
+    assert tracker.loss_reason(dim, shape, None, near=True) == ""  # where a face was a moment ago
+    assert tracker.loss_reason(clear, shape, res.p).startswith("low confidence")  # clear faces: as before
+    assert tracker.loss_reason(replace(dim, confidence=0.1), shape, res.p).startswith("low confidence")
+    width = res.p[3] * tracker.searcher.width
+    moved = res.p.copy()
+    assert tracker._near(moved, res.p)
+    moved[4] += 0.2 * width
+    assert tracker._near(moved, res.p)
+    moved[4] += 0.2 * width  # 0.4 face widths away: elsewhere
+    assert not tracker._near(moved, res.p)
+    bigger = res.p.copy()
+    bigger[3] *= 1.5
+    assert not tracker._near(bigger, res.p)
+    turned = res.p.copy()
+    turned[2] += 0.5
+    assert not tracker._near(turned, res.p)

@@ -541,7 +541,8 @@ class Tracker:
                 timings["pyramid"] = t_pyr
                 timings["search"] = time.perf_counter() - t1 - t_pyr
             count += 1
-            near = recent is not None and count - recent[1] <= cfg.dim_recent and self._near(res.p, recent[0])
+            near = (res.dim and res.confidence < cfg.min_confidence and recent is not None  # (only then it matters)
+                    and count - recent[1] <= cfg.dim_recent and self._near(res.p, recent[0]))
             reason = self.loss_reason(res, image.shape[:2], p if status == "tracked" else None, near=near)
             if not reason:
                 recent = (res.p, count)

@@ -470,13 +470,13 @@ class Tracker:
         and coefficients stay the image's own fit's. Two fits that disagree, or a face accepted only in the
         mirror, leave the image's own fit as it is: the mirror's detection can be another face (helen_test turned
         by 30 degrees: a mirror fit 1.2 eye distances off; 2 of 330 disagree so, clean helen_test none: their
-        distances' 99th percentile is 0.033; ``agree`` is the failure line NME 0.08 the benchmarks use). Test-time flipping, as landmark detectors evaluate with (e.g.
-        HRNet's flip test): the two fits start from different boxes and read mirrored patches, so their errors
-        are partly independent. helen_test stills (2026-11-27, shipped models): 3D mean NME 0.0350 -> 0.0347
-        (within 0.08 98.2% -> 98.5%), Spearman(confidence, NME) -0.64 -> -0.65; 2D 0.0354 -> 0.0353; twice the
-        time (averaging only the landmark cascade's points from one search's start, cheaper, gained a tenth as
-        much: 0.0350 -> 0.0350). ``frame``: an object with ``index``, ``timestamp``, ``image`` as ``track``
-        takes."""
+        distances' 99th percentile is 0.033; ``agree`` is the failure line NME 0.08 the benchmarks use).
+        Test-time flipping, as landmark detectors evaluate with (e.g. HRNet's flip test): the two fits start from
+        different boxes and read mirrored patches, so their errors are partly independent. helen_test stills
+        (2026-11-27, shipped models): 3D mean NME 0.03503 -> 0.03472 (within 0.08 98.2% -> 98.5%),
+        Spearman(confidence, NME) -0.64 -> -0.65; 2D 0.0354 -> 0.0353; twice the time (averaging only the
+        landmark cascade's points from one search's start, cheaper, gained a tenth as much: 0.03503 -> 0.03498).
+        ``frame``: an object with ``index``, ``timestamp``, ``image`` as ``track`` takes."""
         res = next(iter(self.track([frame])))
         if not mirror or not res.success:
             return res

@@ -20,7 +20,7 @@ from ..imaging import thumbnail, to_gray32
 from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import mirror_points, similarity_fit
 from ..mesh.shape_model import N_POSE, initial_pose
-from ..metrics import PIXEL_ORIGIN
+from ..metrics import PIXEL_ORIGIN, nme
 from ..model import Model
 from ..search import Searcher
 from ..result import FitResult, FrameResult
@@ -29,6 +29,12 @@ from .replay import ReplayFrame
 log = logging.getLogger(__name__)
 
 TRACKED_STARTS = ("auto", "landmarks", "similarity", "search")
+
+
+def _motion(p: np.ndarray, q: np.ndarray) -> tuple[float, float]:
+    """(turn, rescale) from search vector q to p: the largest change of the three angles (radians) and |log| of
+    the scale ratio."""
+    return float(np.abs(p[:3] - q[:3]).max()), abs(float(np.log(p[3] / q[3])))
 
 
 @dataclass(frozen=True)
@@ -422,22 +428,21 @@ class Tracker:
         if inside < cfg.min_inside:
             return f"{inside:.0%} of the landmarks inside the frame"
         if p_before is not None:
-            turn = float(np.abs(res.p[:3] - p_before[:3]).max())
+            turn, rescale = _motion(res.p, p_before)
             if turn > cfg.max_turn:
                 return f"turned {turn:.2f} rad in one frame"
-            rescale = abs(float(np.log(res.p[3] / p_before[3])))
             if rescale > cfg.max_rescale:
                 return f"rescaled by {rescale:.2f} (log) in one frame"
         return ""
 
     def _near(self, p: np.ndarray, q: np.ndarray) -> bool:
         """Whether the fit p is where the fit q was: centres within ``dim_near`` face widths, sizes within
-        ``max_rescale`` (log), pose within ``max_turn``."""
+        ``max_rescale`` (log), pose within ``max_turn`` (``_motion``, as ``loss_reason`` bounds one frame's)."""
         cfg = self.config
-        width = q[3] * self.searcher.width
-        return bool(np.hypot(*(p[4:6] - q[4:6])) <= cfg.dim_near * width
-                    and abs(float(np.log(p[3] / q[3]))) <= cfg.max_rescale
-                    and float(np.abs(p[:3] - q[:3]).max()) <= cfg.max_turn)
+        if np.hypot(*(p[4:6] - q[4:6])) > cfg.dim_near * q[3] * self.searcher.width:
+            return False
+        turn, rescale = _motion(p, q)
+        return turn <= cfg.max_turn and rescale <= cfg.max_rescale
 
     def _inside(self, pts: np.ndarray, shape: tuple) -> float:
         H, W = shape
@@ -486,8 +491,7 @@ class Tracker:
         if not alt.success:
             return replace(res, timings=timings)
         back = mirror_points(alt.landmarks, frame.image.shape[1])
-        eye = float(np.linalg.norm(res.landmarks[45] - res.landmarks[36]))
-        if float(np.linalg.norm(res.landmarks - back, axis=1).mean()) > agree * eye:
+        if float(nme(back, res.landmarks)) > agree:
             return replace(res, timings=timings)
         return replace(res, landmarks=0.5 * (res.landmarks + back), confidence=0.5 * (res.confidence + alt.confidence),
                        timings=timings)

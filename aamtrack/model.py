@@ -442,13 +442,19 @@ def _dim_validator(c: _Checker, spec: dict | None, lv: dict | None, n_descriptor
         return None, 0.0
     if lv is None:
         c.fail("a validator for dim faces without a landmark validator")
-    try:
-        below = float(spec["below"])
-    except (KeyError, TypeError, ValueError):
-        c.fail("unreadable dim_validator settings")
-    if not 0.0 <= below <= 1e3:
-        c.fail(f"dim_validator threshold {below} outside 0..1000")
+    below = _threshold(c, spec, "below", 0.0, 1e3, "dim_validator")
     return _validator(c, "dim_validator", spec, n_descriptor), below
+
+
+def _threshold(c: _Checker, spec: dict, key: str, lo: float, hi: float, name: str) -> float:
+    """The number ``spec[key]`` of the part ``name``, checked to lie in lo..hi."""
+    try:
+        value = float(spec[key])
+    except (KeyError, TypeError, ValueError):
+        c.fail(f"unreadable {name} settings")
+    if not lo <= value <= hi:
+        c.fail(f"{name} threshold {value} outside {lo:g}..{hi:g}")
+    return value
 
 
 def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
@@ -483,12 +489,7 @@ def _soft_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None) ->
         return None, math.inf
     if lc is None:
         c.fail("a soft landmark cascade without a landmark cascade")
-    try:
-        above = float(spec["above"])
-    except (KeyError, TypeError, ValueError):
-        c.fail("unreadable soft landmark cascade settings")
-    if not 0.0 <= above <= 1.0:
-        c.fail(f"soft landmark cascade threshold {above} outside 0..1")
+    above = _threshold(c, spec, "above", 0.0, 1.0, "soft landmark cascade")
     shape = lc.regressors.shape
     return replace(lc, regressors=c.array("soft_landmarks/regressors", np.float32, shape),
                    biases=c.array("soft_landmarks/biases", np.float64, lc.biases.shape),

@@ -145,9 +145,9 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     x0, y0, x1, y1 = box
     c = np.asarray(image[y0:y1, x0:x1], np.float32)
     lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:]).ravel()
-    k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time)
-    part = np.partition(lap, (k - 1, k))
-    med = part[k] if lap.size % 2 else (part[k - 1] + part[k]) / np.float32(2.0)
+    k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time) at one index
+    part = np.partition(lap, k)  # (at two, (k - 1, k), it took 8x as long: 230 against 30 us on a 28k-pixel box)
+    med = part[k] if lap.size % 2 else (part[:k].max() + part[k]) / np.float32(2.0)
     noise = float(med) / (0.6745 * math.sqrt(20.0))
     _, sd = cv2.meanStdDev(c)  # in float64: c.std()'s float32 passes to 1e-6, in a fifth of the time
     return float(sd[0, 0]) / (noise + 0.5)

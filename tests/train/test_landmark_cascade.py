@@ -179,6 +179,28 @@ def test_signal_to_noise_reads_the_added_noise_and_calls_dim_noisy_faces_low():
     assert signal_to_noise(np.full((150, 150), 90, np.float32), 1.0, truth[0]) == 0.0  # flat: no signal
     assert signal_to_noise(gray[0], 1.0, truth[0] + 1000.0) == 0.0  # off the image
 
+
+def test_signal_to_noise_is_its_definition_on_odd_and_even_boxes():
+    """``signal_to_noise`` (a partition at one index, the lower middle value taken as the lower half's largest)
+    against its definition written the slow way: np.std of the points' box over 0.5 + np.median of the absolute
+    5-point Laplacian / 0.6745 / sqrt(20), on boxes with an odd and an even number of interior pixels."""
+    from aamtrack.landmark_cascade import signal_to_noise
+
+    rng = np.random.default_rng(SEED)
+    img = cv2.GaussianBlur(rng.uniform(0, 255, (120, 130)).astype(np.float32), (0, 0), 1.0)
+    img += rng.normal(0.0, 4.0, img.shape).astype(np.float32)
+    n_odd = 0
+    for w, h in ((31, 40), (32, 41), (41, 33), (50, 50), (57, 61)):
+        x0, y0 = rng.integers(0, 60, 2)
+        pts = np.array([[x0, y0], [x0 + w - 1, y0 + h - 1], [x0 + w // 2, y0 + h // 3]], np.float64)
+        c = img[y0:y0 + h, x0:x0 + w]
+        lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:])
+        n_odd += lap.size % 2
+        noise = float(np.median(lap)) / (0.6745 * np.sqrt(20.0))
+        expected = float(c.astype(np.float64).std()) / (noise + 0.5)
+        assert abs(signal_to_noise(img, 1.0, pts) / expected - 1.0) < 1e-6  # float32 medians, float64 sums
+    assert 0 < n_odd < 5  # both kinds of box were checked
+
 def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_finds_them():
     """A second cascade learned on blurred copies alone, with the first one's descriptor components (``like``),
     fits held-out blurred faces closer than the sharp cascade does, and ``_soft_threshold`` puts its gate between

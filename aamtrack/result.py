@@ -28,6 +28,7 @@ class FitResult:
         image; None before the cascade
     dim : bool -- the confidence is the validator for dim faces' (``Model.validator_for``): the face's contrast
         over the image's noise is low
+    soft : bool -- the points are the soft landmark cascade's (``Model.cascade_for``): the face looks blurred
     """
 
     p: np.ndarray
@@ -39,6 +40,7 @@ class FitResult:
     confidence: float = 0.0
     landmark_prior: np.ndarray | None = None
     dim: bool = False
+    soft: bool = False
 
 
 @dataclass(frozen=True)

@@ -136,7 +136,8 @@ class Searcher:
         lv = self.model.validator_for(img, r, pts)
         conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior,
-                       dim=lv is not None and lv is self.model.dim_validator)
+                       dim=lv is not None and lv is self.model.dim_validator,
+                       soft=lc is not self.model.landmark_cascade)
 
     def project(self, p: np.ndarray) -> np.ndarray:
         """(n_vertices, 2) image pixels of the search vector p."""

@@ -780,6 +780,27 @@ def test_blurred_frames_take_the_soft_landmark_cascade(synth_model):
     assert len(moved) >= 3 and all(moved)  # soft: the soft cascade's points
 
 
+def test_a_soft_fit_is_marked_and_a_2d_track_starts_from_its_landmarks(synth_model):
+    """``FitResult.soft`` says which cascade gave the points; after a soft fit the 2D model's next search starts
+    from the landmark fit (``landmark_start``), after a sharp one from the similarity (``realign``), unless the
+    start is set explicitly (``tracked_start``), which then holds for both."""
+    import cv2
+
+    model = synth_model
+    tracker = Tracker(model)
+    frames, truth = synth.moving_face_frames(1)
+    eye = float(np.linalg.norm(truth[0][45] - truth[0][36]))
+    sharp, _ = tracker.detect_and_fit(frames[0])
+    soft, _ = tracker.detect_and_fit(cv2.GaussianBlur(frames[0], (0, 0), 0.08 * eye))
+    assert sharp is not None and not sharp.soft
+    assert soft is not None and soft.soft
+    assert np.array_equal(tracker.tracked_start(sharp), tracker.realign(sharp))
+    assert np.array_equal(tracker.tracked_start(soft), tracker.landmark_start(soft))
+    assert not np.allclose(tracker.realign(soft), tracker.landmark_start(soft))  # the two starts differ
+    fixed = Tracker(model, config=TrackerConfig(tracked_start="similarity"))
+    assert np.array_equal(fixed.tracked_start(soft), fixed.realign(soft))
+
+
 def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
     """``Tracker.fit_still`` averages the image's fit with its mirror's, moved back: the moved-back points must
     land where the face is (a slip of the mirror's pixel convention would shift every x by about a pixel or two:

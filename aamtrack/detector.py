@@ -98,7 +98,7 @@ class HaarDetector:
         one at up to twice the detection width after clipped histogram equalisation (small faces); the largest
         in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
         back); and, when ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
-        light), then the smallest faces (``SMALLEST_WIDTHS``). None when there is none: a frame without a face
+        light), then the smallest faces (``SMALLEST_WIDTHS``, then with the second cascade). None when there is none: a frame without a face
         costs all of these searches, the thorough ones most (``TrackerConfig.thorough_every`` has the figures).
 
         The second search is for small faces, which a plain equalisation hides wherever a flat background fills
@@ -120,7 +120,8 @@ class HaarDetector:
         if not thorough:
             return tries
         tries += [(0.0, DETECT_WIDTH, equalize, cascade, False) for equalize, cascade in UNEVEN]
-        return tries + [(0.0, width, "clipped", 0, True) for width in smallest_widths(frame_width)]
+        widths = smallest_widths(frame_width)
+        return tries + [(0.0, width, "clipped", 0, True) for width in widths] + [(0.0, widths[-1], "clipped", 1, True)]
 
     def more(self, gray: np.ndarray, tried=()) -> Iterator[np.ndarray]:
         """Upright boxes other than ``tried`` ((x, y, w, h) upright boxes whose fits failed), best guesses first:
@@ -158,6 +159,12 @@ UNEVEN = (("local", 0), ("local", 1))
 # small30_hd (all 330 stills, fitted within NME 0.08): 0% before, 55.5% with those two, 73.9% with the third at
 # 1920 px. Capping each search's boxes at 50 px (a search per size band, about half the cost) found fewer
 # (51.5%): Haar's hits on a face come from several neighbouring scales.
+# Then, last, the second cascade (alt2) at the widest of those widths: the first one's smallest searches miss many
+# faces that small that alt2 finds, and put no box elsewhere on them (small30_hd: of the 79 stills ``find``
+# missed, alt2 at full width found 34, all on the face; at 1280 px 17, at 640 none; the first cascade at full
+# width with fewer neighbours: 6 (3), 12 (2)). small30_hd 73.9% -> 84.2% within NME 0.08; a frame without a face
+# costs its thorough searches about a quarter to a half more (cap12's background at 1920x1080: 0.79 -> 1.02 s,
+# 640x480: 0.26 -> 0.41 s, dark noise at 1280x720: 1.3 -> 2.1 s; every ``thorough_every`` lost frames).
 SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH
 SMALLEST_BOX = 20  # pixels of the searched image: the smallest box of every search (the cascades' windows are 20-24)
 

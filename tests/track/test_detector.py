@@ -91,24 +91,32 @@ def _on(box, point) -> bool:
     return x <= point[0] <= x + w and y <= point[1] <= y + h
 
 
+def _small_face_in_full_hd(img_path, pts_path) -> tuple:
+    """(frame, centre): the photo shrunk to 30 px between the outer eye corners in a grey 1920x1080 frame, and its
+    points' centre there (0-based pixels)."""
+    from aamtrack.io.dataset import load_pair
+
+    photo, pts = load_pair(img_path, pts_path)
+    k = 30.0 / np.linalg.norm(pts[45] - pts[36])
+    small = cv2.resize(photo, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    frame = np.full((1080, 1920) + small.shape[2:], 128, np.uint8)
+    y0, x0 = (1080 - small.shape[0]) // 2, (1920 - small.shape[1]) // 3
+    frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
+    return frame, (pts.mean(0) - 1.0) * k + [x0, y0]
+
+
 @pytest.mark.shared_data
 def test_small_faces_in_a_full_hd_frame_are_found_by_the_smallest_searches():
     """The first 10 helen_test photos shrunk to 30 px between the outer eye corners, each in a grey 1920x1080
     frame: the searches at 320 and 640 px wide with their minimum box find (almost) none of them (the premise,
     measured 0 of 60 over more photos), ``find`` finds most of them (30 of 60), each box on its face."""
-    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.io.dataset import find_pairs
     from conftest import shared_path
 
     det = HaarDetector()
     before = found = 0
     for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:10]:
-        photo, pts = load_pair(img_path, pts_path)
-        k = 30.0 / np.linalg.norm(pts[45] - pts[36])
-        small = cv2.resize(photo, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
-        frame = np.full((1080, 1920) + small.shape[2:], 128, np.uint8)
-        y0, x0 = (1080 - small.shape[0]) // 2, (1920 - small.shape[1]) // 3
-        frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
-        centre = (pts.mean(0) - 1.0) * k + [x0, y0]
+        frame, centre = _small_face_in_full_hd(img_path, pts_path)
 
         old = np.vstack([det.detect_all(frame), det.detect_all(frame, 0.0, 640, equalize="clipped")])
         before += any(_on(box, centre) for box in old)
@@ -125,19 +133,13 @@ def test_the_second_cascade_finds_small_faces_the_first_misses():
     those the first cascade's smallest-face searches miss (18), the second cascade's search at full width finds
     some (4), each box on its face, none elsewhere (over all 330: 34 of the 79 ``find`` missed before it)."""
     from aamtrack.detector import smallest_widths
-    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.io.dataset import find_pairs
     from conftest import shared_path
 
     det = HaarDetector()
     missed = found = elsewhere = 0
     for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:60]:
-        photo, pts = load_pair(img_path, pts_path)
-        k = 30.0 / np.linalg.norm(pts[45] - pts[36])
-        small = cv2.resize(photo, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
-        frame = np.full((1080, 1920) + small.shape[2:], 128, np.uint8)
-        y0, x0 = (1080 - small.shape[0]) // 2, (1920 - small.shape[1]) // 3
-        frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
-        centre = (pts.mean(0) - 1.0) * k + [x0, y0]
+        frame, centre = _small_face_in_full_hd(img_path, pts_path)
         first = [det.detect_all(frame, 0.0, w, equalize="clipped", smallest=True)[:1] for w in smallest_widths(1920)]
         if any(_on(box, centre) for boxes in first for box in boxes):
             continue

@@ -98,8 +98,9 @@ class HaarDetector:
         one at up to twice the detection width after clipped histogram equalisation (small faces); the largest
         in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
         back); and, when ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
-        light), then the smallest faces (``SMALLEST_WIDTHS``, then with the second cascade). None when there is none: a frame without a face
-        costs all of these searches, the thorough ones most (``TrackerConfig.thorough_every`` has the figures).
+        light), then the smallest faces (``SMALLEST_WIDTHS``, then with the second cascade). None when there is
+        none: a frame without a face costs all of these searches, the thorough ones most
+        (``TrackerConfig.thorough_every`` has the figures).
 
         The second search is for small faces, which a plain equalisation hides wherever a flat background fills
         most of the frame: its grey level takes most of the output range, and the face's contrast is squeezed
@@ -121,7 +122,8 @@ class HaarDetector:
             return tries
         tries += [(0.0, DETECT_WIDTH, equalize, cascade, False) for equalize, cascade in UNEVEN]
         widths = smallest_widths(frame_width)
-        return tries + [(0.0, width, "clipped", 0, True) for width in widths] + [(0.0, widths[-1], "clipped", 1, True)]
+        smallest = [(0.0, width, "clipped", 0, True) for width in widths]
+        return tries + smallest + [(0.0, widths[-1], "clipped", 1, True)]  # and the second cascade, widest only
 
     def more(self, gray: np.ndarray, tried=()) -> Iterator[np.ndarray]:
         """Upright boxes other than ``tried`` ((x, y, w, h) upright boxes whose fits failed), best guesses first:

@@ -136,14 +136,14 @@ class TrackerConfig:
     8 frames. 1: every frame.
     dim_tracked_min, dim_recent, dim_near: a fit judged by the validator for dim faces (``FitResult.dim``) is
     accepted from confidence ``dim_tracked_min`` instead of ``min_confidence`` when it follows an accepted fit of
-    the previous frame (a tracked frame), or when it lies where a fit was accepted at most ``dim_recent`` frames
-    before in the same shot (centres within ``dim_near`` face widths, size and pose within ``max_rescale`` and
-    ``max_turn``: ``Tracker._near``). That validator's bias was lowered until it accepts no more non-faces than
-    the landmark validator (held out, 0.75%), at the cost of 13% of good dim fits held out; a face that was
-    just there is most likely still there. cap12 shrunk to 45 px between the eyes, dark and noisy (the
-    robustness suite's dim_small, 3D): tracked 88.7% -> 95.9%, NME 0.0329 -> 0.0327; its lost frames' fits had
-    NME 0.035-0.06 at confidences 0.07-0.45. Frames of a shot with no accepted fit, and clear faces, still need
-    ``min_confidence``; a cut (``cut_below``) forgets the recent fit."""
+    the previous frame (a tracked frame), or when it lies where a fit was accepted at most ``dim_recent`` fitted
+    frames before in the same shot (frames where no face was found to fit do not count; centres within ``dim_near``
+    face widths, size and pose within ``max_rescale`` and ``max_turn``: ``Tracker._near``). That validator's bias
+    was lowered until it accepts no more non-faces than the landmark validator (held out, 0.75%), at the cost of 13%
+    of good dim fits held out; a face that was just there is most likely still there. cap12 shrunk to 45 px between
+    the eyes, dark and noisy (the robustness suite's dim_small, 3D): tracked 88.7% -> 95.9%, NME 0.0329 -> 0.0327;
+    its lost frames' fits had NME 0.035-0.06 at confidences 0.07-0.45. Frames of a shot with no accepted fit, and
+    clear faces, still need ``min_confidence``; a cut (``cut_below``) forgets the recent fit."""
 
     min_confidence: float = 0.5
     min_inside: float = 0.7
@@ -512,8 +512,8 @@ class Tracker:
         estimate = self.model.shape.n_shape > 0 and cfg.sigma_frames > 0
         thumb = None      # the previous frame's (shot changes)
         misses = 0        # frames since the track was lost (or cut) without an accepted face
-        recent = None     # (search vector, frame count) of the shot's last accepted fit
-        count = 0
+        recent = None     # (search vector, n_fitted then) of the shot's last accepted fit
+        n_fitted = 0      # frames that had a fit, accepted or not (``dim_recent`` counts these)
         for frame in frames:
             if getattr(frame, "dropped", False):
                 yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped")
@@ -549,12 +549,12 @@ class Tracker:
                 res, t_pyr = self.search_from(image, start, shape_params)
                 timings["pyramid"] = t_pyr
                 timings["search"] = time.perf_counter() - t1 - t_pyr
-            count += 1
+            n_fitted += 1
             near = (res.dim and res.confidence < cfg.min_confidence and recent is not None  # (only then it matters)
-                    and count - recent[1] <= cfg.dim_recent and self._near(res.p, recent[0]))
+                    and n_fitted - recent[1] <= cfg.dim_recent and self._near(res.p, recent[0]))
             reason = self.loss_reason(res, image.shape[:2], p if status == "tracked" else None, near=near)
             if not reason:
-                recent = (res.p, count)
+                recent = (res.p, n_fitted)
                 if estimate and shape_params is None and res.confidence >= cfg.sigma_min_confidence:
                     sigma_samples.append(res.p[n_q:].copy())
                     if len(sigma_samples) >= cfg.sigma_frames:

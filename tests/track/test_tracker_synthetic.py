@@ -786,8 +786,7 @@ def test_a_soft_fit_is_marked_and_a_2d_track_starts_from_its_landmarks(synth_mod
     start is set explicitly (``tracked_start``), which then holds for both."""
     import cv2
 
-    model = synth_model
-    tracker = Tracker(model)
+    tracker = Tracker(synth_model)
     frames, truth = synth.moving_face_frames(1)
     eye = float(np.linalg.norm(truth[0][45] - truth[0][36]))
     sharp, _ = tracker.detect_and_fit(frames[0])
@@ -797,7 +796,7 @@ def test_a_soft_fit_is_marked_and_a_2d_track_starts_from_its_landmarks(synth_mod
     assert np.array_equal(tracker.tracked_start(sharp), tracker.realign(sharp))
     assert np.array_equal(tracker.tracked_start(soft), tracker.landmark_start(soft))
     assert not np.allclose(tracker.realign(soft), tracker.landmark_start(soft))  # the two starts differ
-    fixed = Tracker(model, config=TrackerConfig(tracked_start="similarity"))
+    fixed = Tracker(synth_model, config=TrackerConfig(tracked_start="similarity"))
     assert np.array_equal(fixed.tracked_start(soft), fixed.realign(soft))
 
 

@@ -201,6 +201,7 @@ def test_signal_to_noise_is_its_definition_on_odd_and_even_boxes():
         assert abs(signal_to_noise(img, 1.0, pts) / expected - 1.0) < 1e-6  # float32 medians, float64 sums
     assert 0 < n_odd < 5  # both kinds of box were checked
 
+
 def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_finds_them():
     """A second cascade learned on blurred copies alone, with the first one's descriptor components (``like``),
     fits held-out blurred faces closer than the sharp cascade does, and ``_soft_threshold`` puts its gate between

@@ -84,20 +84,17 @@ def test_the_quick_searches_find_small_faces_after_local_equalisation():
     the searches a lost track runs on every frame (``find`` without ``thorough``) find more of them on the face
     with the last one, at twice DETECT_WIDTH after local equalisation, than without it (measured over all 330:
     223 against 163)."""
-    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.io.dataset import find_pairs
     from conftest import shared_path
 
     det = HaarDetector()
     without = found = 0
     for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:20]:
-        photo, pts = load_pair(img_path, pts_path)
-        grey = photo if photo.ndim == 2 else cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY)
-        k = 30.0 / np.linalg.norm(pts[45] - pts[36])
-        small = cv2.resize(grey, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+        small, centre = _shrunk(img_path, pts_path, grey=True)
         frame = np.full((720, 1280), 128, np.uint8)
         y0, x0 = (720 - small.shape[0]) // 2, (1280 - small.shape[1]) // 2
         frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
-        centre = (pts.mean(0) - 1.0) * k + [x0, y0]
+        centre = centre + [x0, y0]
         hit = det.find(frame, thorough=False)
         found += hit is not None and hit[1] == 0.0 and _on(hit[0], centre)
         old = [det.detect_all(frame), det.detect_all(frame, 0.0, 640, equalize="clipped")]
@@ -122,18 +119,26 @@ def _on(box, point) -> bool:
     return x <= point[0] <= x + w and y <= point[1] <= y + h
 
 
-def _small_face_in_full_hd(img_path, pts_path) -> tuple:
-    """(frame, centre): the photo shrunk to 30 px between the outer eye corners in a grey 1920x1080 frame, and its
+def _shrunk(img_path, pts_path, *, grey: bool = False) -> tuple:
+    """(image, centre): the photo (made grey if asked) shrunk to 30 px between the outer eye corners, and its
     points' centre there (0-based pixels)."""
     from aamtrack.io.dataset import load_pair
 
     photo, pts = load_pair(img_path, pts_path)
+    if grey and photo.ndim == 3:
+        photo = cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY)
     k = 30.0 / np.linalg.norm(pts[45] - pts[36])
-    small = cv2.resize(photo, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    return cv2.resize(photo, None, fx=k, fy=k, interpolation=cv2.INTER_AREA), (pts.mean(0) - 1.0) * k
+
+
+def _small_face_in_full_hd(img_path, pts_path) -> tuple:
+    """(frame, centre): the photo shrunk to 30 px between the outer eye corners in a grey 1920x1080 frame, and its
+    points' centre there (0-based pixels)."""
+    small, centre = _shrunk(img_path, pts_path)
     frame = np.full((1080, 1920) + small.shape[2:], 128, np.uint8)
     y0, x0 = (1080 - small.shape[0]) // 2, (1920 - small.shape[1]) // 3
     frame[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
-    return frame, (pts.mean(0) - 1.0) * k + [x0, y0]
+    return frame, centre + [x0, y0]
 
 
 @pytest.mark.shared_data
@@ -313,7 +318,7 @@ def test_the_smallest_searches_give_the_strongest_box_first():
     dark 1920x1080 frame of blurred random blocks: the smallest-face search at full width finds boxes on the
     background too, larger than the face's (the premise: the largest box is on the face in at most 2), and gives
     the strongest first, which is on the face in most (measured 9 of 10; 8 with clipped equalisation)."""
-    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.io.dataset import find_pairs
     from conftest import shared_path
 
     rng = np.random.default_rng(1)
@@ -322,13 +327,10 @@ def test_the_smallest_searches_give_the_strongest_box_first():
     det = HaarDetector()
     first_on = largest_on = 0
     for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:10]:
-        photo, pts = load_pair(img_path, pts_path)
-        grey = photo if photo.ndim == 2 else cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY)
-        k = 30.0 / np.linalg.norm(pts[45] - pts[36])
-        small = cv2.resize(grey, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+        small, centre = _shrunk(img_path, pts_path, grey=True)
         frame = background.copy()
         frame[500:500 + small.shape[0], 800:800 + small.shape[1]] = (small * 0.5).astype(np.uint8)
-        centre = (pts.mean(0) - 1.0) * k + [800, 500]
+        centre = centre + [800, 500]
         boxes = det.detect_all(frame, 0.0, 1920, equalize="local", smallest=True)
         if len(boxes):
             first_on += _on(boxes[0], centre)

@@ -167,8 +167,8 @@ class HaarDetector:
 # overexposed 90.6% -> 92.1%, blurred 77.6% -> 79.4%, clean 97.6% -> 98.2% (benchmarks/robustness.py).
 UNEVEN = (("local", 0), ("local", 1))
 
-# Searches for the smallest faces, last: clipped equalisation, boxes down to the cascade's own window (20 px), at
-# 2, 4 and 6 times the detection width, never wider than the frame. Haar's window is fixed in pixels and the other
+# Searches for the smallest faces, last: boxes down to the cascade's own window (20 px), at 2, 4 and 6 times the
+# detection width, never wider than the frame (measured first with clipped equalisation; now local: below). Haar's window is fixed in pixels and the other
 # searches run on the frame shrunk to 320 or 640 px wide with boxes of at least 8% of its height: a face 40 px
 # between the outer eye corners in a 1920x1080 frame is 7 px at 320 wide. helen_test faces shrunk to that eye
 # distance, centred in a grey frame (60 faces, found upright with the box on the face), with the searches at 640

@@ -69,12 +69,12 @@ CLIPS = (
 CLIP_NAMES = tuple(c.name for c in CLIPS)
 
 
-def _degrade(image, clip: Clip, rng) -> np.ndarray:
-    out = image.astype(np.float32) * np.asarray(clip.gains, np.float32)
-    if clip.blur > 0:
-        out = cv2.GaussianBlur(out, (0, 0), clip.blur)
-    if clip.noise > 0:
-        out = out + rng.normal(0.0, clip.noise, out.shape).astype(np.float32)
+def _degrade(image, gains, blur: float, noise: float, rng) -> np.ndarray:
+    out = image.astype(np.float32) * np.asarray(gains, np.float32)
+    if blur > 0:
+        out = cv2.GaussianBlur(out, (0, 0), blur)
+    if noise > 0:
+        out = out + rng.normal(0.0, noise, out.shape).astype(np.float32)
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
@@ -96,7 +96,7 @@ def face_clip(frames: list, ref: np.ndarray, clip: Clip) -> tuple[list, np.ndarr
                     0.5 * H + 0.12 * H * np.cos(2 * np.pi * t / 250) - c[1]]
         warped = cv2.warpAffine(frames[i], M, (W, H), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_CONSTANT,
                                 borderValue=BORDER)
-        out.append(_degrade(warped, clip, rng))
+        out.append(_degrade(warped, clip.gains, clip.blur, clip.noise, rng))
         refs.append(affine_points(ref[i], M))
     return out, np.array(refs)
 
@@ -110,11 +110,10 @@ def room_clip(frame: np.ndarray, face: np.ndarray, clip: Clip, n: int = ROOM_FRA
     mask[max(0, int(c[1] - 1.2 * r)):int(c[1] + 2.5 * r), max(0, int(c[0] - r)):int(c[0] + r)] = 255
     room = cv2.resize(cv2.inpaint(frame, mask, 5, cv2.INPAINT_TELEA), (W + 160, H + 120))
     rng = np.random.default_rng(clip.seed)
-    dark = Clip(clip.name, clip.size, gains=ROOM_GAINS, noise=ROOM_NOISE)
     out = []
     for t in range(n):
         x, y = int(80 + 60 * np.sin(t / 90)), int(60 + 40 * np.cos(t / 70))
-        out.append(_degrade(room[y:y + H, x:x + W], dark, rng))
+        out.append(_degrade(room[y:y + H, x:x + W], ROOM_GAINS, 0.0, ROOM_NOISE, rng))
     return out
 
 

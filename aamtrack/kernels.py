@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels import face_stats as _fs
 from ._kernels import landmark_fit as _lf
 from ._kernels import patches as _p
 from ._kernels import warp as _k
@@ -179,3 +180,19 @@ def landmark_gauss_newton_step(x, free_pose, n_coef: int, sigma_fixed, LM, LS, L
                            _in(sigma_fixed, F64, 1, "sigma_fixed"), _in(LM, F64, 2, "LM"), _in(LS, F64, 3, "LS"),
                            _in(LA, F64, 3, "LA"), _in(points, F64, 2, "points"), float(width), float(lam_c),
                            float(damping), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"))
+
+
+def face_sharpness(image, scale: float, pts, pad: int, k1, k2) -> float:
+    """How soft the face's box in ``image`` looks (``aamtrack._kernels.face_stats._sharpness``): image (H, W)
+    float32, the points pts (L, 2) in frame pixels, ``pad`` even, k1 and k2 odd Gaussian kernels (n,) float32."""
+    if pad % 2:
+        raise ValueError(f"pad: an even number of pixels expected, got {pad}")
+    return _fs._sharpness(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts"), int(pad),
+                          _in(k1, F32, 1, "k1"), _in(k2, F32, 1, "k2"))
+
+
+def face_laplacian_and_deviation(image, scale: float, pts) -> tuple[np.ndarray, float]:
+    """(|Laplacian| of the face's box's inner pixels (n,) float32, the box's standard deviation), or (empty, -1)
+    for a box too small or off the image (``aamtrack._kernels.face_stats._laplacian_and_deviation``): image (H, W)
+    float32, the points pts (L, 2) in frame pixels."""
+    return _fs._laplacian_and_deviation(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts"))

@@ -26,7 +26,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from .kernels import landmark_cascade, landmark_descriptors
+from .kernels import face_laplacian_and_deviation, face_sharpness, landmark_cascade, landmark_descriptors
 from .mesh.landmarks import similarity_fit
 
 
@@ -82,75 +82,49 @@ def shape_features(ref: np.ndarray, pts: np.ndarray, M: np.ndarray) -> np.ndarra
 SHARPNESS_SIGMAS = (1.5, 3.0)  # pixels of the image the cascade reads (the face about its finest couple's width)
 
 
-def _face_box(shape: tuple, scale: float, pts: np.ndarray, pad: int, min_side: int) -> tuple | None:
-    """(x0, y0, x1, y1): the box of the points pts (68, 2) (frame pixels) in an image of ``shape`` (H, W) resampled
-    by ``scale``, grown by ``pad`` pixels and cut to the image; None when a point is not finite or a side is
-    under ``min_side`` (what ``sharpness`` and ``signal_to_noise`` read)."""
-    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
-    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        return None
-    h, w = shape
-    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
-    x1, y1 = min(int(hi[0]) + pad, w), min(int(hi[1]) + pad, h)
-    if x1 - x0 < min_side or y1 - y0 < min_side:
-        return None
-    return x0, y0, x1, y1
+def _gaussian(sigma: float) -> np.ndarray:
+    """(n,) float32: the kernel OpenCV's ``GaussianBlur`` takes for a float32 image and ``sigma`` (n = round(8 sigma
+    + 1), odd)."""
+    n = int(round(sigma * 8 + 1)) | 1
+    return cv2.getGaussianKernel(n, sigma, cv2.CV_32F).ravel()
+
+
+_S1, _S2 = SHARPNESS_SIGMAS
+_SHARPNESS_PAD = int(math.ceil(2 * _S2)) + int(math.ceil(2 * _S2)) % 2  # even: pad / 2 whole half-size pixels
+_SHARPNESS_KERNELS = (_gaussian(0.5 * _S1), _gaussian(0.5 * math.sqrt(_S2 * _S2 - _S1 * _S1)))
 
 
 def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """How soft the face looks, 0..1: the gradient energy of the image blurred by ``SHARPNESS_SIGMAS[1]`` pixels
     over that of it blurred by ``SHARPNESS_SIGMAS[0]``, on the box of the points pts (68, 2) (frame pixels) in
     ``image`` (the grey frame resampled by ``scale``: the face at the finest couple's size, so sharp and soft mean
-    the same for every face size), computed at half that resolution. Independent of contrast, and of noise: both
+    the same for every face size), computed at half that resolution (2 x 2 means of the box cut to even sides),
+    in one compiled call (``kernels.face_sharpness``). Independent of contrast, and of noise: both
     blurs are wider than a pixel (a ratio against the raw image, tried first, called blurred faces with sensor
     noise sharp). helen_test at that resolution (/tmp harness, 2026-11-26): sharp faces 0.35-0.53 (5th-95th
     percentile), with Gaussian noise of 12 grey levels 0.34-0.52; blurred by 0.06 eye distances 0.77-0.86, with
     that noise 0.63-0.80. 0 for a flat box or one off the image. What picks the soft landmark cascade
     (``Model.soft_cascade``)."""
-    s1, s2 = SHARPNESS_SIGMAS
-    pad = int(math.ceil(2 * s2))  # even: the half-size patch's margin is pad / 2 whole pixels
-    pad += pad % 2
-    box = _face_box(image.shape, scale, pts, pad, 2 * pad + 4)
-    if box is None:
-        return 0.0  # no face-sized box inside the image
-    x0, y0, x1, y1 = box
-    half = cv2.resize(np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32), None, fx=0.5, fy=0.5,
-                      interpolation=cv2.INTER_AREA)
-    a = cv2.GaussianBlur(half, (0, 0), 0.5 * s1, borderType=cv2.BORDER_REPLICATE)
-    b = cv2.GaussianBlur(a, (0, 0), 0.5 * math.sqrt(s2 * s2 - s1 * s1), borderType=cv2.BORDER_REPLICATE)
-    m = pad // 2
-
-    def energy(img):
-        inner = img[m:img.shape[0] - m, m:img.shape[1] - m]
-        gx, gy = np.diff(inner, axis=1).ravel(), np.diff(inner, axis=0).ravel()
-        return float(np.dot(gx, gx)) + float(np.dot(gy, gy))
-
-    e = energy(a)
-    return energy(b) / e if e > 1e-6 else 0.0
+    return face_sharpness(image, scale, pts, _SHARPNESS_PAD, *_SHARPNESS_KERNELS)
 
 
 def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
     (0.5 grey levels + the noise's standard deviation, estimated as the median absolute Laplacian / 0.6745 /
-    sqrt(20), which edges barely move). helen_test at the 3D model's finest couple (5th-95th percentile): clean
+    sqrt(20), which edges barely move) (``kernels.face_laplacian_and_deviation``, then numpy's median). helen_test at
+    the 3D model's finest couple (5th-95th percentile): clean
     13-44, under the robustness suite's other variants at least 4.8 (noise of 25 grey levels 4.8-15), made small
     and dim (dim_small) 1.7-3.7; cap12, whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9.
     0 for a box under 8 pixels a side or off the image. What picks the model's validator for dim, noisy faces
     (``Model.validator_for``)."""
-    box = _face_box(image.shape, scale, pts, 0, 8)
-    if box is None:
+    lap, sd = face_laplacian_and_deviation(image, scale, pts)
+    if sd < 0:
         return 0.0
-    x0, y0, x1, y1 = box
-    c = np.asarray(image[y0:y1, x0:x1], np.float32)
-    lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:]).ravel()
     k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time) at one index
     part = np.partition(lap, k)  # (at two, (k - 1, k), it took 8x as long: 230 against 30 us on a 28k-pixel box)
     med = part[k] if lap.size % 2 else (part[:k].max() + part[k]) / np.float32(2.0)
-    noise = float(med) / (0.6745 * math.sqrt(20.0))
-    _, sd = cv2.meanStdDev(c)  # in float64: c.std()'s float32 passes to 1e-6, in a fifth of the time
-    return float(sd[0, 0]) / (noise + 0.5)
+    return sd / (float(med) / (0.6745 * math.sqrt(20.0)) + 0.5)
 
 
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:

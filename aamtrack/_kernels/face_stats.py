@@ -1,0 +1,190 @@
+"""Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and its contrast over
+the image's noise (``_signal_to_noise``), which pick the landmark cascade and validator for every fit
+(``aamtrack.landmark_cascade``). In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms,
+most of it per-call overhead on boxes of a few thousand pixels; here each is one call.
+
+The box: the points pts (L, 2) (frame pixels) mapped into the level resampled by ``scale``
+(x -> scale (x + 0.5) - 0.5), its floor and ceiling (+1), grown by ``pad`` pixels and cut to the image.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ._flags import NJIT
+
+
+@numba.njit(**NJIT)
+def _face_box(H, W, scale, pts, pad, min_side, box):
+    """box (4,) int64 <- (x0, y0, x1, y1) of the points in an image of H x W (see the module docstring).
+    Returns False when a point is not finite or a side is under ``min_side``."""
+    lo_x = math.inf
+    lo_y = math.inf
+    hi_x = -math.inf
+    hi_y = -math.inf
+    for i in range(pts.shape[0]):
+        x = scale * (pts[i, 0] + 0.5) - 0.5
+        y = scale * (pts[i, 1] + 0.5) - 0.5
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return False
+        lo_x = min(lo_x, x)
+        lo_y = min(lo_y, y)
+        hi_x = max(hi_x, x)
+        hi_y = max(hi_y, y)
+    if pts.shape[0] == 0:
+        return False
+    x0 = max(int(math.floor(lo_x)) - pad, 0)
+    y0 = max(int(math.floor(lo_y)) - pad, 0)
+    x1 = min(int(math.ceil(hi_x)) + 1 + pad, W)
+    y1 = min(int(math.ceil(hi_y)) + 1 + pad, H)
+    if x1 - x0 < min_side or y1 - y0 < min_side:
+        return False
+    box[0] = x0
+    box[1] = y0
+    box[2] = x1
+    box[3] = y1
+    return True
+
+
+@numba.njit(**NJIT)
+def _blur(src, k, out, row, acc):
+    """out (h, w) float32 <- src (h, w) float32 convolved with the odd symmetric kernel k (n,) float32 along both
+    axes, borders replicated (OpenCV's ``GaussianBlur`` with ``BORDER_REPLICATE``, to float32 rounding). row
+    (w + n - 1,) and acc (w,) float32: scratch. The vertical pass first, into out, then the horizontal one row
+    by row; each inner loop runs along x into acc, which aliases nothing, so it vectorises (summing into a row of
+    out directly took 2-3x as long)."""
+    h, w = src.shape
+    n = k.shape[0]
+    r = n // 2
+    for y in range(h):
+        for x in range(w):
+            acc[x] = 0.0
+        for t in range(n):
+            yy = min(max(y + t - r, 0), h - 1)
+            kt = k[t]
+            for x in range(w):
+                acc[x] += kt * src[yy, x]
+        for x in range(w):
+            out[y, x] = acc[x]
+    for y in range(h):
+        for x in range(w):
+            row[x + r] = out[y, x]
+        for x in range(r):
+            row[x] = out[y, 0]
+            row[w + r + x] = out[y, w - 1]
+        for x in range(w):
+            acc[x] = 0.0
+        for t in range(n):
+            kt = k[t]
+            for x in range(w):
+                acc[x] += kt * row[x + t]
+        for x in range(w):
+            out[y, x] = acc[x]
+
+
+@numba.njit(**NJIT)
+def _energy(img, m):
+    """Sum of squared differences of neighbours along x and y (float64) inside img less an ``m``-pixel margin:
+    in eight running sums (one sum is a chain of dependent adds, which does not vectorise)."""
+    h, w = img.shape
+    acc = np.zeros(8)
+    for y in range(m, h - m):
+        r = img[y]
+        n = w - m - 1 - m
+        n8 = n - n % 8
+        for x in range(m, m + n8, 8):
+            for j in range(8):
+                d = float(r[x + j + 1] - r[x + j])
+                acc[j] += d * d
+        for x in range(m + n8, w - m - 1):
+            d = float(r[x + 1] - r[x])
+            acc[0] += d * d
+    for y in range(m, h - m - 1):
+        r0 = img[y]
+        r1 = img[y + 1]
+        n = w - 2 * m
+        n8 = n - n % 8
+        for x in range(m, m + n8, 8):
+            for j in range(8):
+                d = float(r1[x + j] - r0[x + j])
+                acc[j] += d * d
+        for x in range(m + n8, w - m):
+            d = float(r1[x] - r0[x])
+            acc[0] += d * d
+    return acc.sum()
+
+
+@numba.njit(**NJIT)
+def _sharpness(img, scale, pts, pad, k1, k2):
+    """The gradient energy of the face's box (grown by ``pad``, an even number of pixels, and cut to even sides)
+    halved by 2 x 2 means and blurred by k2 after k1 over that of it blurred by k1, inside a margin of pad / 2
+    half-size pixels (``landmark_cascade.sharpness``). 0 for a flat box or one under 2 pad + 4 pixels a side."""
+    H, W = img.shape
+    box = np.empty(4, np.int64)
+    if not _face_box(H, W, scale, pts, pad, 2 * pad + 4, box):
+        return 0.0
+    x0, y0 = box[0], box[1]
+    h = (box[3] - y0) // 2
+    w = (box[2] - x0) // 2
+    half = np.empty((h, w), np.float32)
+    quarter = np.float32(0.25)
+    for y in range(h):
+        r0 = img[y0 + 2 * y]
+        r1 = img[y0 + 2 * y + 1]
+        for x in range(w):
+            c = x0 + 2 * x
+            half[y, x] = ((r0[c] + r0[c + 1]) + (r1[c] + r1[c + 1])) * quarter
+    row = np.empty(w + max(k1.shape[0], k2.shape[0]), np.float32)
+    acc = np.empty(w, np.float32)
+    a = np.empty((h, w), np.float32)
+    _blur(half, k1, a, row, acc)
+    _blur(a, k2, half, row, acc)  # b, into half's memory
+    m = pad // 2
+    e = _energy(a, m)
+    return _energy(half, m) / e if e > 1e-6 else 0.0
+
+
+@numba.njit(**NJIT)
+def _laplacian_and_deviation(img, scale, pts):
+    """What ``landmark_cascade.signal_to_noise`` reads of the face's box (no pad): (|4-neighbour Laplacian| of
+    the box's inner pixels (n,) float32, formed as numpy forms 4 c - up - down - left - right; the box's standard
+    deviation, float64 from the sums of values and squares, as OpenCV's ``meanStdDev``). An empty array and -1
+    for a box under 8 pixels a side or off the image. (The median is left to numpy: its partition is about 10x
+    as fast as numba's ``np.partition`` or a plain quickselect here.)"""
+    H, W = img.shape
+    box = np.empty(4, np.int64)
+    if not _face_box(H, W, scale, pts, 0, 8, box):
+        return np.empty(0, np.float32), -1.0
+    x0, y0, x1, y1 = box[0], box[1], box[2], box[3]
+    h = y1 - y0
+    w = x1 - x0
+    lap = np.empty((h - 2) * (w - 2), np.float32)
+    four = np.float32(4.0)
+    for y in range(1, h - 1):
+        up = img[y0 + y - 1, x0:x1]
+        mid = img[y0 + y, x0:x1]
+        down = img[y0 + y + 1, x0:x1]
+        o = lap[(y - 1) * (w - 2):y * (w - 2)]
+        for x in range(1, w - 1):
+            o[x - 1] = abs((((four * mid[x] - up[x]) - down[x]) - mid[x - 1]) - mid[x + 1])
+    s = np.zeros(8)  # eight running sums each (see ``_energy``)
+    ss = np.zeros(8)
+    w8 = w - w % 8
+    for y in range(y0, y1):
+        r = img[y, x0:x1]
+        for x in range(0, w8, 8):
+            for j in range(8):
+                v = float(r[x + j])
+                s[j] += v
+                ss[j] += v * v
+        for x in range(w8, w):
+            v = float(r[x])
+            s[0] += v
+            ss[0] += v * v
+    cnt = h * w
+    mean = s.sum() / cnt
+    ss = ss.sum()
+    return lap, math.sqrt(max(ss / cnt - mean * mean, 0.0))

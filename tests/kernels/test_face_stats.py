@@ -1,0 +1,103 @@
+"""The compiled face-box statistics (``aamtrack._kernels.face_stats``) against slow references in numpy and OpenCV
+(what ``landmark_cascade.sharpness`` and ``signal_to_noise`` were before they were compiled)."""
+
+import math
+
+import cv2
+import numpy as np
+
+from aamtrack.landmark_cascade import SHARPNESS_SIGMAS, sharpness, signal_to_noise
+
+SEED = 20261127
+
+
+def _box(shape, scale, pts, pad, min_side):
+    q = scale * (np.asarray(pts, np.float64) + 0.5) - 0.5
+    lo, hi = np.floor(q.min(0)), np.ceil(q.max(0)) + 1
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return None
+    h, w = shape
+    x0, y0 = max(int(lo[0]) - pad, 0), max(int(lo[1]) - pad, 0)
+    x1, y1 = min(int(hi[0]) + pad, w), min(int(hi[1]) + pad, h)
+    if x1 - x0 < min_side or y1 - y0 < min_side:
+        return None
+    return x0, y0, x1, y1
+
+
+def sharpness_slow(image, scale, pts):
+    s1, s2 = SHARPNESS_SIGMAS
+    pad = int(math.ceil(2 * s2))
+    pad += pad % 2
+    box = _box(image.shape, scale, pts, pad, 2 * pad + 4)
+    if box is None:
+        return 0.0
+    x0, y0, x1, y1 = box
+    x1 -= (x1 - x0) % 2  # even sides: the half-size image is the 2 x 2 means
+    y1 -= (y1 - y0) % 2
+    half = cv2.resize(np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32), None, fx=0.5, fy=0.5,
+                      interpolation=cv2.INTER_AREA)
+    a = cv2.GaussianBlur(half, (0, 0), 0.5 * s1, borderType=cv2.BORDER_REPLICATE)
+    b = cv2.GaussianBlur(a, (0, 0), 0.5 * math.sqrt(s2 * s2 - s1 * s1), borderType=cv2.BORDER_REPLICATE)
+    m = pad // 2
+
+    def energy(img):
+        inner = img[m:img.shape[0] - m, m:img.shape[1] - m].astype(np.float64)
+        return float((np.diff(inner, axis=1) ** 2).sum() + (np.diff(inner, axis=0) ** 2).sum())
+
+    e = energy(a)
+    return energy(b) / e if e > 1e-6 else 0.0
+
+
+def signal_to_noise_slow(image, scale, pts):
+    box = _box(image.shape, scale, pts, 0, 8)
+    if box is None:
+        return 0.0
+    x0, y0, x1, y1 = box
+    c = np.asarray(image[y0:y1, x0:x1], np.float32)
+    lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:])
+    noise = float(np.median(lap)) / (0.6745 * math.sqrt(20.0))
+    return float(c.astype(np.float64).std()) / (noise + 0.5)
+
+
+def _cases(n=60):
+    """Textured images with a face-sized cloud of points inside, across sizes, scales, odd and even boxes, noise
+    and quantised grey levels."""
+    rng = np.random.default_rng(SEED)
+    for _ in range(n):
+        H, W = rng.integers(40, 220, 2)
+        img = cv2.GaussianBlur((rng.random((H, W)) * 255).astype(np.float32), (0, 0), float(rng.uniform(0.5, 3)))
+        if rng.random() < 0.5:
+            img = np.round(img)
+        scale = float(rng.choice([1.0, rng.uniform(0.3, 1.0)]))
+        centre = rng.uniform(0.3, 0.7, 2) * (W, H) / scale
+        pts = centre + rng.normal(0, 1, (68, 2)) * rng.uniform(5, 40) / scale
+        yield img, scale, pts
+
+
+def test_sharpness_matches_its_slow_reference():
+    n = 0
+    for img, scale, pts in _cases():
+        want = sharpness_slow(img, scale, pts)
+        got = sharpness(img, scale, pts)
+        assert abs(got - want) < 1e-5 * max(1.0, abs(want))  # float32 blurs summed in another order
+        n += want > 0
+    assert n > 30  # most cases have a box to measure
+
+
+def test_signal_to_noise_matches_its_slow_reference():
+    n = 0
+    for img, scale, pts in _cases():
+        want = signal_to_noise_slow(img, scale, pts)
+        got = signal_to_noise(img, scale, pts)
+        assert abs(got - want) <= 1e-6 * max(1.0, abs(want))  # the same float32 Laplacian and median
+        n += want > 0
+    assert n > 30
+
+
+def test_face_stats_off_the_image_or_not_finite_give_zero():
+    img = np.full((100, 100), 100.0, np.float32)
+    pts = np.full((68, 2), 50.0) + np.random.default_rng(SEED).normal(0, 10, (68, 2))
+    assert sharpness(img, 1.0, pts) == 0.0  # flat box
+    for bad in (pts + 1000.0, np.where(np.arange(68)[:, None] == 3, np.nan, pts)):
+        assert sharpness(img, 1.0, bad) == 0.0
+        assert signal_to_noise(img, 1.0, bad) == 0.0

@@ -79,7 +79,6 @@ def shape_features(ref: np.ndarray, pts: np.ndarray, M: np.ndarray) -> np.ndarra
     return ((pts - pts.mean(0)) @ np.linalg.inv(M) - ref).reshape(-1)
 
 
-REGRESSOR_RANK = 64  # the rank tracking uses of each stage's regressor (``LandmarkCascade.factors``)
 SHARPNESS_SIGMAS = (1.5, 3.0)  # pixels of the image the cascade reads (the face about its finest couple's width)
 
 
@@ -159,25 +158,6 @@ class LandmarkCascade:
         return len(self.halves)
 
     @cached_property
-    def factors(self) -> tuple[np.ndarray, np.ndarray]:
-        """The regressors as two factors, (K, 136, r) and (K, r, 68 d) float32 with r = ``REGRESSOR_RANK``: each
-        R_k projected on its r leading output directions (R_k ~ U U^T R_k, U the leading eigenvectors of
-        R_k R_k^T, 136 x 136: a few ms per stage, once per model). An approximation, made for speed: the
-        regressors are read from memory every frame (7 MB of float32 for four stages), and most of their output
-        lies in few directions. helen_test stills (3D, ``benchmarks/accuracy.py``, 2026-11-27): mean NME 0.0347
-        with the full regressors, 0.0348 at rank 64, 0.0347 at 96; within 0.08 98.5% at each."""
-        K, n_out, n_in = self.regressors.shape
-        r = min(REGRESSOR_RANK, n_out, n_in)
-        A = np.empty((K, n_out, r), np.float32)
-        B = np.empty((K, r, n_in), np.float32)
-        for k in range(K):
-            R = self.regressors[k].astype(np.float64)
-            _, U = np.linalg.eigh(R @ R.T)  # ascending
-            U = U[:, ::-1][:, :r]
-            A[k], B[k] = U, U.T @ R
-        return A, B
-
-    @cached_property
     def shape_from(self) -> int:
         """The first stage that reads the points' shape (``n_stages`` when none does)."""
         used = np.flatnonzero(np.abs(self.shape_regressors).reshape(self.n_stages, -1).max(1) > 0)
@@ -200,7 +180,7 @@ class LandmarkCascade:
         k = slice(first, None)
         prior = np.empty_like(x)
         z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
-                             self.basis_mean[k], self.basis[k], (self.factors[0][k], self.factors[1][k]), self.biases[k],
+                             self.basis_mean[k], self.basis[k], self.regressors[k], self.biases[k],
                              self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
@@ -223,5 +203,5 @@ class LandmarkCascade:
                                     self.basis[k])
             ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
             prior += ds
-            x += (self.factors[0][k] @ (self.factors[1][k] @ z) + self.biases[k]).reshape(-1, 2) @ M + ds
+            x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds
         return x, z.reshape(-1), prior

@@ -194,8 +194,8 @@ def _squared_norm(ref):
 
 
 @numba.njit(**NJIT)
-def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, RA, RB, b, S, shape_from, cells, cell,
-                      bins, floor, feat, shape, prior):
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, S, shape_from, cells, cell, bins,
+                      floor, feat, shape, prior):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
@@ -216,7 +216,7 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, RA
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        d = np.dot(RA[k], np.dot(RB[k], z.reshape(-1)))
+        d = np.dot(R[k], z.reshape(-1))
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)
             d += ds

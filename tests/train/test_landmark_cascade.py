@@ -238,28 +238,3 @@ def test_soft_cascade_learned_on_blurred_faces_fits_them_better_and_the_gate_fin
     s = np.array([sharpness(images_all[i], 1.0, x) for i, x in zip(owner, np.concatenate([fits, fits]))])
     assert np.mean(s[:80] <= above) > 0.9 and np.mean(s[80:] > above) > 0.9  # sharp below, blurred above (all, when written)
     assert rec["nme_gated"] <= min(rec["nme_sharp_only"], rec["nme_soft_only"]) + 1e-12
-
-
-def test_regressor_factors_are_the_best_low_rank_regressors():
-    """``LandmarkCascade.factors``: A has orthonormal columns and A B is R's truncated SVD at ``REGRESSOR_RANK``
-    (the best approximation of that rank); a regressor of lower rank comes back whole."""
-    from dataclasses import replace
-
-    from aamtrack.landmark_cascade import REGRESSOR_RANK, LandmarkCascade
-
-    rng = np.random.default_rng(SEED)
-    K, n_in, r = 2, 300, REGRESSOR_RANK
-    R = rng.normal(size=(K, 136, n_in)).astype(np.float32)
-    lc = LandmarkCascade(ref=np.zeros((68, 2)), spec=DescriptorSpec(), halves=(0.3, 0.2), basis_mean=np.zeros((K, 72)),
-                         basis=np.zeros((K, 72, 4), np.float32), regressors=R, biases=np.zeros((K, 136)),
-                         shape_regressors=np.zeros((K, 136, 136), np.float32))
-    A, B = lc.factors
-    assert A.shape == (K, 136, r) and B.shape == (K, r, n_in)
-    for k in range(K):
-        assert np.abs(A[k].T @ A[k] - np.eye(r)).max() < 1e-5
-        U, s, Vt = np.linalg.svd(R[k].astype(np.float64), full_matrices=False)
-        best = (U[:, :r] * s[:r]) @ Vt[:r]
-        assert np.abs(A[k] @ B[k] - best).max() < 1e-4 * np.abs(best).max()  # float32 factors
-    low = np.einsum("kor,kri->koi", rng.normal(size=(K, 136, 20)), rng.normal(size=(K, 20, n_in))).astype(np.float32)
-    A, B = replace(lc, regressors=low).factors
-    assert np.abs(np.einsum("kor,kri->koi", A, B) - low).max() < 1e-4 * np.abs(low).max()  # rank 20 < r: whole

@@ -98,7 +98,7 @@ def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """How soft the face looks, 0..1: the gradient energy of the image blurred by ``SHARPNESS_SIGMAS[1]`` pixels
     over that of it blurred by ``SHARPNESS_SIGMAS[0]``, on the box of the points pts (68, 2) (frame pixels) in
     ``image`` (the grey frame resampled by ``scale``: the face at the finest couple's size, so sharp and soft mean
-    the same for every face size), computed at half that resolution (2 x 2 means of the box cut to even sides),
+    the same for every face size), computed at half that resolution,
     in one compiled call (``kernels.face_sharpness``). Independent of contrast, and of noise: both
     blurs are wider than a pixel (a ratio against the raw image, tried first, called blurred faces with sensor
     noise sharp). helen_test at that resolution (/tmp harness, 2026-11-26): sharp faces 0.35-0.53 (5th-95th

@@ -118,25 +118,48 @@ def _energy(img, m):
 
 
 @numba.njit(**NJIT)
+def _halve(img, x0, y0, w, h):
+    """(round(h / 2), round(w / 2)) float32: the box (x0, y0, w, h) of img resampled by 1/2 as OpenCV's
+    ``cv2.resize(box, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)`` resamples it (its fast path for a whole
+    factor, sizes rounded half to even): 2 x 2 means, and where an odd side rounds up, a last column or row of the
+    means of the pixels left (2, or 1 in the corner). The same values to float32 rounding (sums in another order)."""
+    ho = int(np.rint(0.5 * h))
+    wo = int(np.rint(0.5 * w))
+    hf = h // 2
+    wf = w // 2
+    out = np.empty((ho, wo), np.float32)
+    quarter = np.float32(0.25)
+    half = np.float32(0.5)
+    for y in range(hf):
+        r0 = img[y0 + 2 * y]
+        r1 = img[y0 + 2 * y + 1]
+        for x in range(wf):
+            c = x0 + 2 * x
+            out[y, x] = ((r0[c] + r0[c + 1]) + (r1[c] + r1[c + 1])) * quarter
+        if wo > wf:  # the last source column alone
+            c = x0 + w - 1
+            out[y, wf] = (r0[c] + r1[c]) * half
+    if ho > hf:  # the last source row alone
+        r = img[y0 + h - 1]
+        for x in range(wf):
+            c = x0 + 2 * x
+            out[hf, x] = (r[c] + r[c + 1]) * half
+        if wo > wf:
+            out[hf, wf] = r[x0 + w - 1]
+    return out
+
+
+@numba.njit(**NJIT)
 def _sharpness(img, scale, pts, pad, k1, k2):
-    """The gradient energy of the face's box (grown by ``pad``, an even number of pixels, and cut to even sides)
-    halved by 2 x 2 means and blurred by k2 after k1 over that of it blurred by k1, inside a margin of pad / 2
-    half-size pixels (``landmark_cascade.sharpness``). 0 for a flat box or one under 2 pad + 4 pixels a side."""
+    """The gradient energy of the face's box (grown by ``pad``, an even number of pixels) halved (``_halve``) and
+    blurred by k2 after k1 over that of it blurred by k1, inside a margin of pad / 2 half-size pixels
+    (``landmark_cascade.sharpness``). 0 for a flat box or one under 2 pad + 4 pixels a side."""
     H, W = img.shape
     box = np.empty(4, np.int64)
     if not _face_box(H, W, scale, pts, pad, 2 * pad + 4, box):
         return 0.0
-    x0, y0 = box[0], box[1]
-    h = (box[3] - y0) // 2
-    w = (box[2] - x0) // 2
-    half = np.empty((h, w), np.float32)
-    quarter = np.float32(0.25)
-    for y in range(h):
-        r0 = img[y0 + 2 * y]
-        r1 = img[y0 + 2 * y + 1]
-        for x in range(w):
-            c = x0 + 2 * x
-            half[y, x] = ((r0[c] + r0[c + 1]) + (r1[c] + r1[c + 1])) * quarter
+    half = _halve(img, box[0], box[1], box[2] - box[0], box[3] - box[1])
+    h, w = half.shape
     row = np.empty(w + max(k1.shape[0], k2.shape[0]), np.float32)
     acc = np.empty(w, np.float32)
     a = np.empty((h, w), np.float32)

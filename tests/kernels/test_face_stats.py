@@ -32,8 +32,6 @@ def sharpness_slow(image, scale, pts):
     if box is None:
         return 0.0
     x0, y0, x1, y1 = box
-    x1 -= (x1 - x0) % 2  # even sides: the half-size image is the 2 x 2 means
-    y1 -= (y1 - y0) % 2
     half = cv2.resize(np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32), None, fx=0.5, fy=0.5,
                       interpolation=cv2.INTER_AREA)
     a = cv2.GaussianBlur(half, (0, 0), 0.5 * s1, borderType=cv2.BORDER_REPLICATE)

@@ -90,7 +90,7 @@ def _gaussian(sigma: float) -> np.ndarray:
 
 
 _S1, _S2 = SHARPNESS_SIGMAS
-_SHARPNESS_PAD = int(math.ceil(2 * _S2)) + int(math.ceil(2 * _S2)) % 2  # even: pad / 2 whole half-size pixels
+_SHARPNESS_PAD = 2 * int(math.ceil(_S2))  # >= 2 sigma, and even: the half-size margin is pad / 2 whole pixels
 _SHARPNESS_KERNELS = (_gaussian(0.5 * _S1), _gaussian(0.5 * math.sqrt(_S2 * _S2 - _S1 * _S1)))
 
 
@@ -98,13 +98,12 @@ def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """How soft the face looks, 0..1: the gradient energy of the image blurred by ``SHARPNESS_SIGMAS[1]`` pixels
     over that of it blurred by ``SHARPNESS_SIGMAS[0]``, on the box of the points pts (68, 2) (frame pixels) in
     ``image`` (the grey frame resampled by ``scale``: the face at the finest couple's size, so sharp and soft mean
-    the same for every face size), computed at half that resolution,
-    in one compiled call (``kernels.face_sharpness``). Independent of contrast, and of noise: both
-    blurs are wider than a pixel (a ratio against the raw image, tried first, called blurred faces with sensor
-    noise sharp). helen_test at that resolution (/tmp harness, 2026-11-26): sharp faces 0.35-0.53 (5th-95th
-    percentile), with Gaussian noise of 12 grey levels 0.34-0.52; blurred by 0.06 eye distances 0.77-0.86, with
-    that noise 0.63-0.80. 0 for a flat box or one off the image. What picks the soft landmark cascade
-    (``Model.soft_cascade``)."""
+    the same for every face size), computed at half that resolution in one compiled call
+    (``kernels.face_sharpness``). Independent of contrast, and of noise: both blurs are wider than a pixel (a
+    ratio against the raw image, tried first, called blurred faces with sensor noise sharp). helen_test at that
+    resolution (/tmp harness, 2026-11-26): sharp faces 0.35-0.53 (5th-95th percentile), with Gaussian noise of 12
+    grey levels 0.34-0.52; blurred by 0.06 eye distances 0.77-0.86, with that noise 0.63-0.80. 0 for a flat box
+    or one off the image. What picks the soft landmark cascade (``Model.soft_cascade``)."""
     return face_sharpness(image, scale, pts, _SHARPNESS_PAD, *_SHARPNESS_KERNELS)
 
 
@@ -112,12 +111,11 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
     (0.5 grey levels + the noise's standard deviation, estimated as the median absolute Laplacian / 0.6745 /
-    sqrt(20), which edges barely move) (``kernels.face_laplacian_and_deviation``, then numpy's median). helen_test at
-    the 3D model's finest couple (5th-95th percentile): clean
-    13-44, under the robustness suite's other variants at least 4.8 (noise of 25 grey levels 4.8-15), made small
-    and dim (dim_small) 1.7-3.7; cap12, whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9.
-    0 for a box under 8 pixels a side or off the image. What picks the model's validator for dim, noisy faces
-    (``Model.validator_for``)."""
+    sqrt(20), which edges barely move) (``kernels.face_laplacian_and_deviation``, then numpy's median).
+    helen_test at the 3D model's finest couple (5th-95th percentile): clean 13-44, under the robustness suite's
+    other variants at least 4.8 (noise of 25 grey levels 4.8-15), made small and dim (dim_small) 1.7-3.7; cap12,
+    whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9. 0 for a box under 8 pixels a side
+    or off the image. What picks the model's validator for dim, noisy faces (``Model.validator_for``)."""
     lap, sd = face_laplacian_and_deviation(image, scale, pts)
     if sd < 0:
         return 0.0

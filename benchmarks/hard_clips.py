@@ -34,7 +34,8 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine_name, write_json  # noqa: E402
-from robustness import DATA, REPO, Aamtrack, read_video, score_video, video_reference  # noqa: E402
+from robustness import (DATA, REPO, Aamtrack, add_noise, blur, dark_cast, read_video, score_video,  # noqa: E402
+                        video_reference)
 
 from aamtrack.mesh.landmarks import affine_points  # noqa: E402
 from aamtrack.metrics import nme  # noqa: E402
@@ -69,13 +70,15 @@ CLIPS = (
 CLIP_NAMES = tuple(c.name for c in CLIPS)
 
 
-def _degrade(image, gains, blur: float, noise: float, rng) -> np.ndarray:
-    out = image.astype(np.float32) * np.asarray(gains, np.float32)
-    if blur > 0:
-        out = cv2.GaussianBlur(out, (0, 0), blur)
+def _degrade(image, gains, sigma: float, noise: float, rng) -> np.ndarray:
+    """The robustness suite's own degradations, in turn: gains (``dark_cast``), blur of ``sigma`` pixels, noise of
+    ``noise`` grey levels (each rounded back to uint8)."""
+    out = dark_cast(image, (), gains=gains)[0]
+    if sigma > 0:
+        out = blur(out, (), sigma=sigma)[0]
     if noise > 0:
-        out = out + rng.normal(0.0, noise, out.shape).astype(np.float32)
-    return np.clip(out, 0, 255).astype(np.uint8)
+        out = add_noise(out, (), sigma=noise, rng=rng)[0]
+    return out
 
 
 def face_clip(frames: list, ref: np.ndarray, clip: Clip) -> tuple[list, np.ndarray]:

@@ -48,9 +48,7 @@ class LandmarkFitter:
 
     def __init__(self, sm: ShapeModel):
         self.sm = sm
-        self.LM = sm.landmark_map @ sm.mean
-        self.LS = np.einsum("lv,kvd->kld", sm.landmark_map, sm.shape_units)
-        self.LA = np.einsum("lv,kvd->kld", sm.landmark_map, sm.basis)
+        self.LM, self.LS, self.LA = sm.landmark_arrays
         lo_q, hi_q = sm.bounds()
         n_p = len(free_pose(sm))
         self._lo = np.r_[np.full(n_p, -np.inf), lo_q[N_POSE:]]

@@ -12,6 +12,7 @@ pose (see ``aamtrack._kernels.warp`` for the parameter vector q and the axis con
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -106,8 +107,22 @@ class ShapeModel:
         return self.landmark_map @ self.project(q, shape_params)
 
     def landmarks3d(self, q: np.ndarray, shape_params: np.ndarray | None = None) -> np.ndarray:
-        """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed), in model units."""
-        return self.landmark_map @ self.shape3d(q, shape_params)
+        """(68, 3) float64 iBUG-68 landmarks in the model frame (pose removed), in model units: L (M + S sigma +
+        A alpha) as L M + (L S) sigma + (L A) alpha (``landmark_arrays``; the tracker makes this for every frame,
+        and the 68 points are a fraction of the mesh)."""
+        LM, LS, LA = self.landmark_arrays
+        n = len(LM)
+        out = LM.reshape(-1) + np.asarray(q[N_POSE:], float) @ LA.reshape(len(LA), -1)  # (tensordot: 2x the time)
+        if shape_params is not None and self.n_shape > 0:
+            out += np.asarray(shape_params, float) @ LS.reshape(len(LS), -1)
+        return out.reshape(n, 3)
+
+    @cached_property
+    def landmark_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(L M (68, 3), L S (n_shape, 68, 3), L A (n_coef, 68, 3)) float64: the landmark map L applied to the mean,
+        the shape units and the coefficients' basis (animation units or PCA modes), once per model."""
+        L = self.landmark_map
+        return L @ self.mean, np.einsum("lv,kvd->kld", L, self.shape_units), np.einsum("lv,kvd->kld", L, self.basis)
 
     def mm_per_unit(self) -> float:
         """Millimetres per model unit: the mean face's outer eye corners (iBUG 36, 45) put ``EYE_CORNERS_MM`` apart.

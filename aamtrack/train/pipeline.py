@@ -221,7 +221,7 @@ def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, confi
         fits = [fit_landmarks(sm, points[i]) for i in progress(sub, desc=f"place landmarks {r + 1}", unit="img")]
         lm = refine_landmark_map(sm.landmark_map, sm.mean, sm.triangles,
                                  _model_residuals(sm, fits, points[sub]), n_preferred=N_CANDIDE_SKIN_TRIANGLES)
-        sm = ShapeModel(**{**sm.__dict__, "landmark_map": lm})
+        sm = replace(sm, landmark_map=lm)
     fits = [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
     if config.n_corrective:
         sm = with_corrective_units(sm, _model_residuals(sm, fits, points), config.n_corrective)
@@ -230,7 +230,7 @@ def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, confi
     sigma = np.array([f.shape_params for f in fits])
     # The training set's average person becomes the mean shape; sigma's prior spread is the set's spread.
     mean = sm.neutral(sigma.mean(0))
-    sm = ShapeModel(**{**sm.__dict__, "mean": mean, "shape_sd": np.maximum(sigma.std(0), 0.05)})
+    sm = replace(sm, mean=mean, shape_sd=np.maximum(sigma.std(0), 0.05))
     fits = [ShapeFit(f.q, f.shape_params - sigma.mean(0), f.rms_px) for f in fits]
     return sm, fits
 

@@ -26,3 +26,18 @@ def test_shipped_model_tracks_the_sample(kind):
     if kind == "3d":
         mm = np.array([np.linalg.norm(r.landmarks3d[45] - r.landmarks3d[36]) for r in results])
         assert np.all((mm > 75) & (mm < 105))  # millimetres, scaled to an 89 mm average; this person's own shape
+
+
+@pytest.mark.parametrize("kind", ["3d", "2d"])
+def test_landmarks3d_are_the_landmark_map_of_the_deformed_mesh(kind):
+    """``ShapeModel.landmarks3d`` (from ``landmark_arrays``, the map applied once to the model's arrays) equals
+    the landmark map applied to the whole deformed mesh, with and without the person's shape units."""
+    sm = load_model(default_model_path(kind)).shape
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        q = np.r_[rng.normal(0, 0.2, 6), rng.normal(0, 0.5, sm.n_q - 6)]
+        sigma = rng.normal(0, 0.5, sm.n_shape)
+        for s in (sigma, None):
+            want = sm.landmark_map @ sm.shape3d(q, s)
+            assert np.abs(sm.landmarks3d(q, s) - want).max() < 1e-9 * max(1.0, np.abs(want).max())  # sums reordered
+    assert not np.allclose(sm.landmarks3d(q, None), sm.landmarks3d(np.zeros_like(q), None))  # the coefficients move them

@@ -54,6 +54,7 @@ class LandmarkFitter:
         self._lo = np.r_[np.full(n_p, -np.inf), lo_q[N_POSE:]]
         self._hi = np.r_[np.full(n_p, np.inf), hi_q[N_POSE:]]
         self._free = np.array(free_pose(sm), np.int64)
+        self._scale_at = free_pose(sm).index(3)  # where the log-scale sits in the fit's unknowns
 
     def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped
@@ -62,20 +63,22 @@ class LandmarkFitter:
         the previous frame's fit is what the tracker takes (``TrackerConfig.tracked_start``): close to the fit's
         minimum already, and about 0.02 ms."""
         sm = self.sm
-        n_q = sm.n_q
-        pose = free_pose(sm)
-        sigma = np.ascontiguousarray(p[n_q:], dtype=np.float64)
+        n_q, pose = sm.n_q, self._free
+        p = np.asarray(p, float)
+        sigma = np.ascontiguousarray(p[n_q:])
         points = np.asarray(points, float)
-        x = np.r_[p[pose], p[N_POSE:n_q]].astype(float)
-        x[pose.index(3)] = np.log(max(float(p[3]), 1e-12))
-        width = float(np.ptp(points[:, 0]) + 1e-9)
+        xs = points[:, 0]
+        x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
+        i_scale = self._scale_at
+        x[i_scale] = np.log(max(float(p[3]), 1e-12))
+        width = float(xs.max() - xs.min()) + 1e-9
         for _ in range(iterations):
-            landmark_gauss_newton_step(x, self._free, sm.n_coef, sigma, self.LM, self.LS, self.LA, points,
+            landmark_gauss_newton_step(x, pose, sm.n_coef, sigma, self.LM, self.LS, self.LA, points,
                                        width, LAMBDA_COEF, damping, self._lo, self._hi)
-        q, _ = unpack(x, sm, pose, False, sigma)
-        out = np.array(p, float)
-        out[pose] = q[pose]
-        out[N_POSE:n_q] = q[N_POSE:]
+        out = p.copy()  # as ``unpack`` then copying its pose and coefficients into p, in fewer numpy calls
+        out[pose] = x[:len(pose)]
+        out[3] = np.exp(x[i_scale])
+        out[N_POSE:n_q] = x[len(pose):]
         return out
 
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):

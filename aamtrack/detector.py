@@ -168,9 +168,10 @@ class HaarDetector:
 UNEVEN = (("local", 0), ("local", 1))
 
 # Searches for the smallest faces, last: boxes down to the cascade's own window (20 px), at 2, 4 and 6 times the
-# detection width, never wider than the frame (measured first with clipped equalisation; now local: below). Haar's window is fixed in pixels and the other
-# searches run on the frame shrunk to 320 or 640 px wide with boxes of at least 8% of its height: a face 40 px
-# between the outer eye corners in a 1920x1080 frame is 7 px at 320 wide. helen_test faces shrunk to that eye
+# detection width, never wider than the frame (measured first with clipped equalisation; now local: below).
+# Haar's window is fixed in pixels and the other searches run on the frame shrunk to 320 or 640 px wide with
+# boxes of at least 8% of its height: a face 40 px between the outer eye corners in a 1920x1080 frame is 7 px at
+# 320 wide. helen_test faces shrunk to that eye
 # distance, centred in a grey frame (60 faces, found upright with the box on the face), with the searches at 640
 # and 1280 px: 40 px in 1920x1080: 10 -> 43; 30 px in 1920x1080: 0 -> 30, in 1280x720: 23 -> 44; 24 px in
 # 1280x720: 4 -> 39; 16 px in 640x480: 6 -> 30 (40 px in 640x480: 60 both). ``benchmarks/robustness.py``'s

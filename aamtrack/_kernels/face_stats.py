@@ -1,7 +1,8 @@
-"""Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and its contrast over
-the image's noise (``_signal_to_noise``), which pick the landmark cascade and validator for every fit
-(``aamtrack.landmark_cascade``). In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms,
-most of it per-call overhead on boxes of a few thousand pixels; here each is one call.
+"""Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and what its contrast
+over the image's noise is read from (``_laplacian_and_deviation``; ``landmark_cascade.signal_to_noise`` takes
+the median in numpy), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``).
+In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms, most of it per-call overhead on
+boxes of a few thousand pixels; here each is one compiled call.
 
 The box: the points pts (L, 2) (frame pixels) mapped into the level resampled by ``scale``
 (x -> scale (x + 0.5) - 0.5), its floor and ceiling (+1), grown by ``pad`` pixels and cut to the image.

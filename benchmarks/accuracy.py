@@ -10,7 +10,9 @@ Stills (default ``../shared/data/300w/helen_test``: 330 crops with human iBUG-68
     tracker judged the fit lost: it returns no landmarks) or ``not found`` (no Haar detection). Reported per
     model: detection rate (Haar found a face), fitted count, mean and median NME over the fitted images, the
     cumulative error distribution over *all* images (share with NME <= t for t = 0 .. 0.15; rejected and not
-    found count as failures) and failures (NME > 0.10, rejected or not found).
+    found count as failures), failures (NME > 0.10, rejected or not found) and ``rho(c,e)``, Spearman's rank
+    correlation between the reported confidence and the NME over the fitted images (negative: the more
+    confident, the closer; the JSON has each image's confidence).
 Video (default ``../shared/data/videos/cap12_edit.mp4``)
     The whole ``aamtrack run`` pipeline (:func:`aamtrack.commands.run.track_file`, no realtime drops), scored
     against the video's two references found next to it: ``<stem>_dlib68.npz`` (all 68 points) and
@@ -218,6 +220,7 @@ class AamRun:
     status : (n,) str
     setup_s : float, model load and numba warm-up (cache load or compile), not in ``times``
     detector_runs : int, frames on which the detector ran
+    confidence : (n,) float64, the reported confidence (0 where no face was fitted)
     """
 
     name: str
@@ -228,6 +231,7 @@ class AamRun:
     status: np.ndarray
     setup_s: float
     detector_runs: int
+    confidence: np.ndarray
 
 
 def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRun:
@@ -266,7 +270,7 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
         runs = (one(image) for image in images)
     else:
         runs = [tracker.track(ReplayFrame(i, i / fps, image) for i, image in enumerate(images))]
-    landmarks, times, walls, found, status = [], [], [], [], []
+    landmarks, times, walls, found, status, confidence = [], [], [], [], [], []
     detector_runs = 0
     for results in runs:
         for res in timed(results, walls):
@@ -274,10 +278,11 @@ def run_aamtrack(images, model_path, *, still: bool, fps: float = 25.0) -> AamRu
             found.append("search" in res.timings)
             detector_runs += "detect" in res.timings
             status.append(res.status)
+            confidence.append(float(res.confidence or 0.0))
             landmarks.append(np.asarray(res.landmarks, dtype=np.float64))
     return AamRun(f"aamtrack {model.kind.upper()}", np.stack(landmarks) if landmarks else np.zeros((0, 68, 2)),
                   np.array(times), np.array(walls), np.array(found, dtype=bool), np.array(status), setup_s,
-                  detector_runs)
+                  detector_runs, np.array(confidence, dtype=np.float64))
 
 
 def load_stills(folder, limit=None) -> tuple[list[str], list[np.ndarray], np.ndarray]:
@@ -296,13 +301,30 @@ def load_stills(folder, limit=None) -> tuple[list[str], list[np.ndarray], np.nda
     return [img.name for img, _ in pairs], images, points
 
 
+def confidence_rank_correlation(confidence, errors) -> float:
+    """Spearman's rank correlation between the confidence and the NME of the fitted images (errors not NaN; ties
+    take their mean rank); NaN under 3 of them. Issue 9 asks for <= -0.5 over helen_test's fits: the more
+    confident, the closer."""
+    from scipy.stats import spearmanr
+
+    c, e = np.asarray(confidence, np.float64).ravel(), np.asarray(errors, np.float64).ravel()
+    if c.shape != e.shape:
+        raise ValueError(f"confidence {c.shape} does not match errors {e.shape}")
+    ok = ~np.isnan(e)
+    if ok.sum() < 3 or np.ptp(c[ok]) == 0 or np.ptp(e[ok]) == 0:
+        return math.nan
+    return float(spearmanr(c[ok], e[ok])[0])
+
+
 def evaluate_stills(model_path, names, images, points) -> dict:
     run = run_aamtrack(images, model_path, still=True)
     err = nme(run.landmarks, points)
     scores = summarize_stills(err, run.found)
     return {"model": str(model_path), "name": run.name, **scores,
+            "spearman_confidence_nme": confidence_rank_correlation(run.confidence, err),
             "median_ms": 1e3 * _median(run.times), "setup_s": run.setup_s,
-            "per_image": [{"image": a, "status": str(s), "nme": float(e)} for a, s, e in zip(names, run.status, err)]}
+            "per_image": [{"image": a, "status": str(s), "nme": float(e), "confidence": float(c)}
+                          for a, s, e, c in zip(names, run.status, err, run.confidence)]}
 
 
 def video_references(video: Path) -> tuple[np.ndarray | None, np.ndarray | None, list[str]]:
@@ -375,7 +397,7 @@ def _fmt(value, spec: str) -> str:
 def stills_table(rows) -> str:
     head = (f"{'model':<12} {'images':>6} {'found':>6} {'det.rate':>8} {'fitted':>6} {'rejected':>8} "
             f"{'NME mean':>8} {'median':>7} {'fail>0.10':>9} {'CED@.05':>7} {'CED@.08':>7} {'CED@.10':>7} "
-            f"{'ms/img':>6}")
+            f"{'rho(c,e)':>8} {'ms/img':>6}")
     lines = [head]
     for r in rows:
         ced = dict(zip(np.round(r["thresholds"], 3), r["ced"]))
@@ -384,7 +406,7 @@ def stills_table(rows) -> str:
             f"{r['n_fitted']:>6} {r['n_rejected']:>8} {_fmt(r['nme_mean'], '.4f'):>8} "
             f"{_fmt(r['nme_median'], '.4f'):>7} {r['failures']:>4} {_fmt(r['failure_rate'], '.1%'):>4} "
             f"{_fmt(ced.get(0.05), '.3f'):>7} {_fmt(ced.get(0.08), '.3f'):>7} {_fmt(ced.get(0.1), '.3f'):>7} "
-            f"{_fmt(r['median_ms'], '.1f'):>6}")
+            f"{_fmt(r.get('spearman_confidence_nme'), '.2f'):>8} {_fmt(r['median_ms'], '.1f'):>6}")
     return "\n".join(lines)
 
 
@@ -504,7 +526,7 @@ def main(argv=None) -> int:
             say(f"stills, {model}: {len(images)} images in {time.perf_counter() - t:.1f} s")
         print(f"\nStills: {args.stills} ({len(images)} images, human iBUG-68 labels); each image fitted on its own "
               f"from a Haar detection; NME over 68 points / outer eye corners; mean and median over fitted images; "
-              f"CED and failures over all images")
+              f"CED and failures over all images; rho(c,e): Spearman of confidence and NME over fitted images")
         print(stills_table(rows))
         result["stills"] = {"folder": str(args.stills), "rows": rows}
         if plt is not None:

@@ -61,6 +61,22 @@ def test_stills_summary_nothing_found():
     assert math.isnan(s["nme_mean"]) and math.isnan(s["nme_median"])
 
 
+def test_confidence_rank_correlation_over_fitted_images():
+    from accuracy import confidence_rank_correlation
+
+    # fitted images: confidence falls as the error grows (perfectly ranked); the NaN errors (not fitted) are left out
+    conf = np.array([0.9, 0.8, 0.7, 0.0, 0.6, 0.3])
+    err = np.array([0.02, 0.03, 0.05, np.nan, 0.07, np.nan])
+    assert confidence_rank_correlation(conf, err) == pytest.approx(-1.0)
+    assert confidence_rank_correlation(conf[[0, 1, 2, 4]], err[[4, 2, 1, 0]]) == pytest.approx(1.0)
+    # one pair out of order among four: rank differences (3, 0, 0, -3), rho = 1 - 6 * 18 / (4 * 15) = -0.8
+    assert confidence_rank_correlation([0.9, 0.8, 0.7, 0.6], [0.02, 0.05, 0.03, 0.07]) == pytest.approx(-0.8)
+    assert math.isnan(confidence_rank_correlation([0.5, 0.5, 0.5], [0.01, 0.02, 0.03]))  # a constant confidence
+    assert math.isnan(confidence_rank_correlation([0.9, 0.1], [0.01, 0.02]))  # under 3 fitted images
+    with pytest.raises(ValueError, match="does not match"):
+        confidence_rank_correlation([0.9], [0.01, 0.02])
+
+
 # ---------------------------------------------------------------------------------------- jitter_vs_reference
 
 
@@ -187,5 +203,6 @@ def test_run_aamtrack_video_and_stills(synth_model, tmp_path):
     assert list(stills.status) == ["detected", "lost", "detected"]  # each image starts with no track
     assert stills.detector_runs == 3 and list(stills.found) == [True, False, True]
     assert np.isnan(stills.landmarks[1]).all()
+    assert stills.confidence[1] == 0.0 and (stills.confidence[[0, 2]] >= 0.5).all()  # accepted fits only
     err = np.linalg.norm(stills.landmarks[[0, 2]] - truth[[0, 3]], axis=-1).mean()
     assert err < 1.0  # from a Haar box alone, within a pixel on the model's own faces

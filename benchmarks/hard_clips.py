@@ -167,7 +167,7 @@ def main(argv=None) -> int:
             if clip_ref is not None:
                 np.savez(args.write / f"{clip.name}_ref.npz", landmarks=clip_ref)
         for model_path, tracker in trackers:
-            success, landmarks = tracker.track(images)
+            success, landmarks, _ = tracker.track(images)
             if clip_ref is None:
                 row = {"clip": clip.name, "model": str(model_path), "frames": len(images),
                        "false_tracked": int(np.sum(success))}

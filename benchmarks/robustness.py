@@ -451,8 +451,8 @@ class _Frame:
 
 class Aamtrack:
     """One model's tracker. ``track(images)``: one track over a video; ``fit_each(images)``: every image fitted on
-    its own as ``aamtrack fit`` fits it (``Tracker.fit_still``, the mirror too). Both return success (n,) bool
-    and landmarks (n, 68, 2) pixels."""
+    its own as ``aamtrack fit`` fits it (``Tracker.fit_still``, the mirror too). Both return success (n,) bool,
+    landmarks (n, 68, 2) pixels and the reported confidence (n,) (0 where no face was fitted)."""
 
     def __init__(self, model_path):
         from aamtrack.model import load_model
@@ -470,11 +470,12 @@ class Aamtrack:
 
 
 def _collect(results):
-    success, landmarks = [], []
+    success, landmarks, confidence = [], [], []
     for r in results:
         success.append(bool(r.success))
         landmarks.append(np.asarray(r.landmarks, np.float64) if r.success else np.full((68, 2), np.nan))
-    return np.array(success, bool), np.stack(landmarks)
+        confidence.append(float(r.confidence or 0.0))
+    return np.array(success, bool), np.stack(landmarks), np.array(confidence)
 
 
 # ----------------------------------------------------------------------------------------------- data, table
@@ -510,32 +511,49 @@ def _fmt(value, spec: str) -> str:
     return format(value, spec)
 
 
+def _rho(row) -> str:
+    """The row's Spearman of confidence and NME (``per_frame``), or – without one."""
+    return _fmt(row.get("spearman_confidence_nme", math.nan), "+.2f")
+
+
 def markdown_table(kind: str, rows) -> str:
     if kind == "video":
-        lines = ["| variant | model | face frames | tracked | NME (tracked) | Δ clean | blank tracked | resumed after "
-                 "| goal | result |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines = ["| variant | model | face frames | tracked | NME (tracked) | Δ clean | rho(c,e) | blank tracked "
+                 "| resumed after | goal | result |", "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             blank = f"{r['blank_tracked']} / {r['n_blank']}" if r["n_blank"] else "–"
             resume = _fmt(r["resume"], "d") + " frames" if r["n_blank"] else "–"
             if r["n_blank"] and r["resume"] is not None and math.isnan(r["resume"]):
                 resume = "never"
             lines.append(f"| {r['variant']} | {r['model_name']} | {r['n_face']} | {_fmt(r['tracked'], '.1%')} | "
-                         f"{_fmt(r['nme'], '.4f')} | {_fmt(r['delta'], '+.4f')} | {blank} | {resume} | {r['goal']} | "
-                         f"{'PASS' if r['pass'] else 'FAIL'} |")
+                         f"{_fmt(r['nme'], '.4f')} | {_fmt(r['delta'], '+.4f')} | {_rho(r)} | {blank} | {resume} | "
+                         f"{r['goal']} | {'PASS' if r['pass'] else 'FAIL'} |")
     else:
-        lines = [f"| variant | model | images | fitted | NME <= {STILL_OK} (all) | NME mean (fitted) | Δ clean | goal "
-                 "| result |",
-                 "|---|---|---|---|---|---|---|---|---|"]
+        lines = [f"| variant | model | images | fitted | NME <= {STILL_OK} (all) | NME mean (fitted) | Δ clean "
+                 "| rho(c,e) | goal | result |",
+                 "|---|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             lines.append(f"| {r['variant']} | {r['model_name']} | {r['n_images']} | {r['n_fitted']} | "
                          f"{_fmt(r['good'], '.1%')} | {_fmt(r['nme'], '.4f')} | {_fmt(r['delta'], '+.4f')} | "
-                         f"{r['goal']} | {'PASS' if r['pass'] else 'FAIL'} |")
+                         f"{_rho(r)} | {r['goal']} | {'PASS' if r['pass'] else 'FAIL'} |")
     return "\n".join(lines)
 
 
 
 
 # ------------------------------------------------------------------------------------------------- script
+
+
+def per_frame(success, landmarks, confidence, ref) -> dict:
+    """Spearman's rank correlation between confidence and NME over the frames or stills with landmarks
+    (``accuracy.confidence_rank_correlation``) and, for the JSON, each one's success, NME (NaN without landmarks or
+    reference) and confidence."""
+    from accuracy import confidence_rank_correlation
+
+    err = nme(np.where(np.asarray(success, bool)[:, None, None], landmarks, np.nan), np.asarray(ref, np.float64))
+    return {"spearman_confidence_nme": confidence_rank_correlation(confidence, err),
+            "per_frame": {"success": np.asarray(success, bool).tolist(), "nme": np.round(err, 5).tolist(),
+                          "confidence": np.round(np.asarray(confidence, np.float64), 4).tolist()}}
 
 
 def run_set(kind: str, variants, trackers, images, points, say) -> list[dict]:
@@ -548,11 +566,12 @@ def run_set(kind: str, variants, trackers, images, points, say) -> list[dict]:
         for model_path, tracker in trackers:
             t1 = time.perf_counter()
             if kind == "video":
-                success, landmarks = tracker.track(imgs)
+                success, landmarks, confidence = tracker.track(imgs)
                 row = score_video(success, landmarks, pts, is_face)
             else:
-                success, landmarks = tracker.fit_each(imgs)
+                success, landmarks, confidence = tracker.fit_each(imgs)
                 row = score_stills(success, landmarks, pts)
+            row.update(per_frame(success, landmarks, confidence, pts))
             if v.name == "clean":
                 clean[model_path] = row["nme"]
             row["delta"] = math.nan if v.name == "clean" else row["nme"] - clean[model_path]

@@ -322,10 +322,11 @@ def test_judge_goals():
 def test_markdown_table_rows():
     row = {"variant": "blank_grey", "model_name": "aamtrack 3D", "n_face": 40, "tracked": 1.0, "nme": 0.0454,
            "delta": 0.0024, "n_blank": 20, "blank_tracked": 20, "resume": 0, "goal": "g", "pass": False}
-    table = rb.markdown_table("video", [row, {**row, "resume": math.nan}])
+    table = rb.markdown_table("video", [row, {**row, "resume": math.nan, "spearman_confidence_nme": -0.614}])
     lines = table.splitlines()
-    assert len(lines) == 4 and all(line.count("|") == 11 for line in lines)
-    assert "| 20 / 20 | 0 frames | g | FAIL |" in lines[2] and "| never |" in lines[3]
+    assert len(lines) == 4 and all(line.count("|") == 12 for line in lines)
+    assert "| +0.0024 | – | 20 / 20 | 0 frames | g | FAIL |" in lines[2]  # no correlation in the row: a dash
+    assert "| -0.61 | 20 / 20 | never |" in lines[3]
 
 
 # ------------------------------------------------------------------------------------ end to end, synthetic
@@ -343,12 +344,12 @@ def test_adapter_and_script_on_synthetic_faces(synth_model, tmp_path, capsys):
 
     tracker = rb.Aamtrack(model_path)
     assert tracker.name == "aamtrack 2D"
-    success, landmarks = tracker.track(frames)
-    assert success.all() and landmarks.shape == (10, 68, 2)
+    success, landmarks, confidence = tracker.track(frames)
+    assert success.all() and landmarks.shape == (10, 68, 2) and (confidence >= 0.5).all()
     assert np.linalg.norm(landmarks - truth, axis=-1).mean() < 1.5  # about a pixel, as in the tracker's tests
     blank = np.full_like(frames[0], 128)
-    success, landmarks = tracker.fit_each([frames[0], blank])  # frame 0 is one Haar finds on its own
-    assert list(success) == [True, False] and np.isnan(landmarks[1]).all()
+    success, landmarks, confidence = tracker.fit_each([frames[0], blank])  # frame 0 is one Haar finds on its own
+    assert list(success) == [True, False] and np.isnan(landmarks[1]).all() and confidence[1] == 0.0
 
     video = tmp_path / "synth.avi"
     synth.write_video(video, frames)
@@ -369,6 +370,10 @@ def test_adapter_and_script_on_synthetic_faces(synth_model, tmp_path, capsys):
     assert set(video_rows) == {"clean", "mirror", "blank_grey"}  # clean always runs
     assert video_rows["clean"]["tracked"] == 1.0 and video_rows["clean"]["nme"] < 0.02  # ~1 px of 70
     assert video_rows["blank_grey"]["n_blank"] == rb.GAP_FRAMES and video_rows["blank_grey"]["n_face"] == 10
+    frames_ = video_rows["blank_grey"]["per_frame"]  # each frame's record: the grey gap has no landmarks, no NME
+    assert len(frames_["success"]) == len(frames_["nme"]) == len(frames_["confidence"]) == 10 + rb.GAP_FRAMES
+    gap = [i for i, e in enumerate(frames_["nme"]) if e is None or math.isnan(e)]
+    assert len(gap) == rb.GAP_FRAMES and not any(frames_["success"][i] for i in gap)
     assert {r["variant"] for r in result["stills"]["rows"]} == {"clean", "mirror"}
     assert result["stills"]["n_images"] == 2
 

@@ -804,7 +804,8 @@ def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
     """``Tracker.fit_still`` averages the image's fit with its mirror's, moved back: the moved-back points must
     land where the face is (a slip of the mirror's pixel convention would shift every x by about a pixel or two:
     width - 1 - x against width + 1 - x), and the average is what the still reports, unless the two disagree by
-    more than ``agree``, when the image's own fit stands."""
+    more than ``agree``, when the image's own fit stands (a second fit from the mirror's points, when the mirror's
+    is the more confident, cannot agree within 0 either)."""
     from aamtrack.mesh.landmarks import mirror_points
     from aamtrack.track.replay import ReplayFrame
 
@@ -826,6 +827,24 @@ def test_fit_still_mirror_maps_back_onto_the_face(synth_model):
         strict = tracker.fit_still(ReplayFrame(0, 0.0, img), agree=0.0)  # any distance is a disagreement
         assert np.array_equal(strict.landmarks, own.landmarks) and strict.confidence == own.confidence
     assert abs(np.mean(back_dx)) < 0.4 and abs(np.mean(own_dx)) < 0.4, (own_dx, back_dx)  # no pixel slip
+
+
+def test_fit_at_points_fits_the_face_the_points_are_on(synth_model):
+    """``Tracker.fit_at_points`` (``fit_still``'s second look when the mirror's fit was the more confident): from
+    68 points a few pixels off the face, a detection's fit lands on it, with its own pose and mesh."""
+    from aamtrack.metrics import PIXEL_ORIGIN
+
+    images, truth = synth.random_faces(3, np.random.default_rng(SEED + 37), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    rng = np.random.default_rng(SEED + 38)
+    for img, pts in zip(images, truth):
+        off = pts - PIXEL_ORIGIN + rng.normal(0.0, 1.0, 2) * 4.0 + rng.normal(0.0, 1.5, pts.shape)  # moved, noisy
+        res = tracker.fit_at_points(img, off)
+        assert res.confidence >= tracker.config.min_confidence
+        err = np.linalg.norm(res.landmarks + PIXEL_ORIGIN - pts, axis=1).mean()
+        assert err < 0.5, err  # sub-pixel, as a detection's fit
+        assert np.allclose(tracker.searcher.project(res.p)[tracker.roi_vertices].mean(0),
+                           res.vertices[tracker.roi_vertices].mean(0), atol=1e-6)  # the mesh is the fit's own
 
 
 def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):

@@ -323,11 +323,8 @@ class Tracker:
                     res = alt
                 if res.confidence >= self.config.min_confidence:
                     break
-        if self.config.landmark_pass and res.confidence >= self.config.min_confidence:
-            alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0)
-            t_pyr += t
-            if alt.confidence >= res.confidence:
-                res = alt
+        res, t = self.landmark_pass(image, res, shape_params)
+        t_pyr += t
         timings["detect"] += t_detect
         timings["pyramid"] = t_pyr
         timings["search"] = time.perf_counter() - t1 - t_pyr - t_detect
@@ -379,11 +376,14 @@ class Tracker:
 
     def initial_p(self, box, shape_params=None, *, angle: float = 0.0, shape: tuple = (0, 0)) -> np.ndarray:
         """Search vector of the rough pose from a detection box, coefficients 0, the person's shape units (or 0)."""
+        return self.points_p(unturn(guess_points(box, self.model.detector_box_points), angle, shape), shape_params)
+
+    def points_p(self, points: np.ndarray, shape_params=None) -> np.ndarray:
+        """Search vector of the rough pose fitted to 68 points (OpenCV's pixels), coefficients 0, the person's shape
+        units (or 0)."""
         sm = self.model.shape
-        points = unturn(guess_points(box, self.model.detector_box_points), angle, shape)
-        q = initial_pose(sm, points, None)
         sigma = np.zeros(sm.n_shape) if shape_params is None else np.asarray(shape_params, float)
-        return np.r_[q, sigma]
+        return np.r_[initial_pose(sm, points, None), sigma]
 
     def tracked_start(self, res: FitResult) -> np.ndarray:
         """Where the next frame's search starts after the accepted fit res (``TrackerConfig.tracked_start``)."""
@@ -517,13 +517,16 @@ class Tracker:
         """A detection's fit (``fit_starts``, then the landmark pass) from the rough pose fitted to 68 points
         (OpenCV's pixels) instead of a box's guessed ones: ``fit_still``'s second look at an image where the
         mirrored image's fit was the more confident and the two disagree."""
-        sm = self.model.shape
-        res, _ = self.fit_starts(image, [np.r_[initial_pose(sm, points, None), np.zeros(sm.n_shape)]])
-        if self.config.landmark_pass and res.confidence >= self.config.min_confidence:
-            alt, _ = self.search_from(image, self.tracked_start(res), last=0)
-            if alt.confidence >= res.confidence:
-                res = alt
-        return res
+        return self.landmark_pass(image, self.fit_starts(image, [self.points_p(points)])[0])[0]
+
+    def landmark_pass(self, image: np.ndarray, res: FitResult, shape_params=None) -> tuple[FitResult, float]:
+        """An accepted detection's fit searched once more as the next frame of a video would be
+        (``TrackerConfig.landmark_pass``), the more confident kept. Returns (fit, seconds spent on the crop and
+        its levels)."""
+        if not self.config.landmark_pass or res.confidence < self.config.min_confidence:
+            return res, 0.0
+        alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0)
+        return (alt if alt.confidence >= res.confidence else res), t
 
     # -- a video ---------------------------------------------------------------------------------------
     def track(self, frames: Iterable) -> Iterator[FrameResult]:

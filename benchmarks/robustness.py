@@ -373,6 +373,15 @@ def _bias(landmarks, ref) -> list:
     return d.mean(axis=0).tolist() if len(d) else [math.nan, math.nan]
 
 
+def _tracked_errors(success, landmarks, ref) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(success (n,) bool, landmarks (n, 68, 2) float64 with NaN where not successful, ref (n, 68, 2) float64,
+    NME (n,): NaN without landmarks or reference) of one run, as every score reads them."""
+    success = np.asarray(success, bool)
+    landmarks = np.where(success[:, None, None], np.asarray(landmarks, np.float64), np.nan)
+    ref = np.asarray(ref, np.float64)
+    return success, landmarks, ref, nme(landmarks, ref)
+
+
 def score_video(success, landmarks, ref, is_face) -> dict:
     """Scores of one track.
 
@@ -391,13 +400,11 @@ def score_video(success, landmarks, ref, is_face) -> dict:
         blank_tracked (blank frames reported tracked), resume (face frames after the last blank one before the
         first tracked one: 0 = at once; NaN if never; None without blanks).
     """
-    success = np.asarray(success, bool)
+    success, landmarks, ref, err = _tracked_errors(success, landmarks, ref)
     is_face = np.asarray(is_face, bool)
-    landmarks = np.where(success[:, None, None], np.asarray(landmarks, np.float64), np.nan)
-    err = nme(landmarks[is_face], np.asarray(ref, np.float64)[is_face])
     n_face = int(is_face.sum())
     out = {"n_face": n_face, "tracked": float(success[is_face].mean()) if n_face else math.nan,
-           "nme": _mean(err), "bias_px": _bias(landmarks[is_face], np.asarray(ref, np.float64)[is_face]),
+           "nme": _mean(err[is_face]), "bias_px": _bias(landmarks[is_face], ref[is_face]),
            "n_blank": int((~is_face).sum()), "blank_tracked": int((success & ~is_face).sum()), "resume": None}
     if out["n_blank"]:
         after = np.flatnonzero(~is_face)[-1] + 1
@@ -409,13 +416,11 @@ def score_video(success, landmarks, ref, is_face) -> dict:
 def score_stills(success, landmarks, ref, *, ok_at: float = STILL_OK) -> dict:
     """n_images, n_fitted, good (share of all images with NME <= ``ok_at``; unfitted count as bad), nme (mean
     over the fitted images), bias_px (mean signed (x, y) error over their points)."""
-    success = np.asarray(success, bool)
-    landmarks = np.where(success[:, None, None], np.asarray(landmarks, np.float64), np.nan)
-    err = nme(landmarks, np.asarray(ref, np.float64))
+    success, landmarks, ref, err = _tracked_errors(success, landmarks, ref)
     n = len(err)
     return {"n_images": int(n), "n_fitted": int(success.sum()),
             "good": float(np.sum(err <= ok_at) / n) if n else math.nan, "nme": _mean(err),
-            "bias_px": _bias(landmarks, np.asarray(ref, np.float64))}
+            "bias_px": _bias(landmarks, ref)}
 
 
 def judge(kind: str, variant: str, row: dict, clean_nme: float) -> tuple[str, bool]:
@@ -550,9 +555,9 @@ def per_frame(success, landmarks, confidence, ref) -> dict:
     reference) and confidence."""
     from accuracy import confidence_rank_correlation
 
-    err = nme(np.where(np.asarray(success, bool)[:, None, None], landmarks, np.nan), np.asarray(ref, np.float64))
+    success, _, _, err = _tracked_errors(success, landmarks, ref)
     return {"spearman_confidence_nme": confidence_rank_correlation(confidence, err),
-            "per_frame": {"success": np.asarray(success, bool).tolist(), "nme": np.round(err, 5).tolist(),
+            "per_frame": {"success": success.tolist(), "nme": np.round(err, 5).tolist(),
                           "confidence": np.round(np.asarray(confidence, np.float64), 4).tolist()}}
 
 

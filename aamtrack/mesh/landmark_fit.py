@@ -50,11 +50,11 @@ class LandmarkFitter:
         self.sm = sm
         self.LM, self.LS, self.LA = sm.landmark_arrays
         lo_q, hi_q = sm.bounds()
-        n_p = len(free_pose(sm))
-        self._lo = np.r_[np.full(n_p, -np.inf), lo_q[N_POSE:]]
-        self._hi = np.r_[np.full(n_p, np.inf), hi_q[N_POSE:]]
-        self._free = np.array(free_pose(sm), np.int64)
-        self._scale_at = free_pose(sm).index(3)  # where the log-scale sits in the fit's unknowns
+        pose = free_pose(sm)
+        self._lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:]]
+        self._hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:]]
+        self._free = np.array(pose, np.int64)
+        self._scale_at = pose.index(3)  # where the log-scale sits in the fit's unknowns
 
     def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped

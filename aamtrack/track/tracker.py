@@ -472,46 +472,79 @@ class Tracker:
             vertices=res.vertices + o, timings=timings)
 
     # -- a still -------------------------------------------------------------------------------------
-    def fit_still(self, frame, *, mirror: bool = True, agree: float = 0.08) -> FrameResult:
+    def fit_still(self, frame, *, mirror: bool = True, agree: float = 0.08, agree_dim: float = 0.03) -> FrameResult:
         """One image on its own (``aamtrack fit``): a one-frame ``track``, detection then search. With ``mirror``
-        the mirrored image is fitted too, from its own detection, and when both fits are accepted and agree (mean
-        point distance at most ``agree`` outer eye-corner distances) the 68 points are the mean of the two (the
-        mirror's moved back, left and right swapped) and the confidence their mean; the pose, mesh, 3D landmarks
-        and coefficients stay the image's own fit's. Two fits that disagree leave the image's own fit as it is
-        when it is the more confident; when the mirror's is, the image is fitted again from the mirror's points
-        moved back (``fit_at_points``) and that fit, if accepted and agreeing with the mirror's, takes the image's
-        place and is averaged with it as above. A face accepted only in the mirror leaves the image's own fit:
-        the mirror's detection can be another face (helen_test turned by 30 degrees: a mirror fit 1.2 eye
-        distances off; clean helen_test: none disagree, their distances' 99th percentile is 0.033; ``agree`` is
-        the failure line NME 0.08 the benchmarks use). Fits that disagree are few (helen_test under the robustness
-        suite's variants, 3D: 0-4 of 330 per variant), and the more confident of the two was within NME 0.08 in 33
-        of 34 such cases (2026-11-27, 3D and 2D, /tmp harness; the other: confidences 0.80 and 0.80).
-        Test-time flipping, as landmark detectors evaluate with (e.g. HRNet's flip test): the two fits start from
-        different boxes and read mirrored patches, so their errors are partly independent. helen_test stills
-        (2026-11-27, shipped models): 3D mean NME 0.03503 -> 0.03472 (within 0.08 98.2% -> 98.5%),
-        Spearman(confidence, NME) -0.64 -> -0.65; 2D 0.0354 -> 0.0353; twice the time (averaging only the
-        landmark cascade's points from one search's start, cheaper, gained a tenth as much: 0.03503 -> 0.03498).
-        ``frame``: an object with ``index``, ``timestamp``, ``image`` as ``track`` takes."""
-        res = next(iter(self.track([frame])))
-        if not mirror or not res.success:
+        the mirrored image is fitted too, from its own detection, whenever the image had a fit (accepted or not; an
+        image where no face was found is not mirrored).
+
+        Both accepted: when they agree (mean point distance at most ``agree`` outer eye-corner distances) the 68
+        points are the mean of the two (the mirror's moved back, left and right swapped) and the confidence their
+        mean; the pose, mesh, 3D landmarks and coefficients stay the image's own fit's. Two fits that disagree leave
+        the image's own fit as it is when it is the more confident; when the mirror's is, the image is fitted again
+        from the mirror's points moved back (``fit_at_points``) and that fit, if accepted and agreeing with the
+        mirror's, takes the image's place and is averaged with it as above. Test-time flipping, as landmark
+        detectors evaluate with (e.g. HRNet's flip test): the two fits start from different boxes and read
+        mirrored patches, so their errors are partly independent. helen_test stills (2026-11-27, shipped models):
+        3D mean NME 0.03503 -> 0.03472 (within 0.08 98.2% -> 98.5%), Spearman(confidence, NME) -0.64 -> -0.65;
+        2D 0.0354 -> 0.0353; twice the time (averaging only the landmark cascade's points from one search's start,
+        cheaper, gained a tenth as much: 0.03503 -> 0.03498). Fits that disagree are few (helen_test under the
+        robustness suite's variants, 3D: 0-4 of 330 per variant), and the more confident of the two was within NME
+        0.08 in 33 of 34 such cases (2026-11-27, 3D and 2D, /tmp harness; the other: confidences 0.80 and 0.80).
+
+        Image rejected, mirror accepted: the image is fitted again from the mirror's points moved back, and that
+        fit stands (averaged as above) if accepted and agreeing; else the image stays rejected (the mirror's
+        detection can be another face: helen_test turned by 30 degrees, a mirror fit 1.2 eye distances off).
+        Both rejected: two fits judged by the validator for dim faces (``FitResult.dim``) that agree within
+        ``agree_dim`` are accepted from ``dim_tracked_min`` (``loss_reason``'s ``near``), as a dim fit where a face
+        just was is in a video: the mirror's fit, from its own detection and mirrored patches, is the second
+        sighting (helen_test made small, dark and noisy (the robustness suite's dim_small), 3D, /tmp harness: of the
+        fits rejected on both sides that agree within 0.03 with both confidences at least 0.2, 17 within NME 0.08
+        and 3 above; fits that disagree were mostly off). ``frame``: an object with ``index``, ``timestamp``,
+        ``image`` as ``track`` takes."""
+        if frame.image is None:
+            return next(iter(self.track([frame])))
+        res, fit = self._fit_one(frame)
+        if not mirror or fit is None:
             return res
-        alt = next(iter(self.track([ReplayFrame(frame.index, frame.timestamp,
-                                                np.ascontiguousarray(frame.image[:, ::-1]))])))
+        width = frame.image.shape[1]
+        alt, alt_fit = self._fit_one(ReplayFrame(frame.index, frame.timestamp,
+                                                 np.ascontiguousarray(frame.image[:, ::-1])))
         timings = {k: res.timings.get(k, 0.0) + alt.timings.get(k, 0.0) for k in {*res.timings, *alt.timings}}
-        if not alt.success:
+        if alt_fit is None or not (res.success or alt.success or (fit.dim and alt_fit.dim)):
             return replace(res, timings=timings)
-        back = mirror_points(alt.landmarks, frame.image.shape[1])
-        if float(nme(back, res.landmarks)) > agree:
-            if alt.confidence <= res.confidence:
+        back = mirror_points(alt_fit.landmarks, width, origin=0.0)  # OpenCV's pixels, as the fits'
+        shape = frame.image.shape[:2]
+        if res.success:
+            if alt.success and float(nme(back, fit.landmarks)) <= agree:
+                return self._averaged(res, alt, back, timings)
+            if not alt.success or alt.confidence <= res.confidence:
                 return replace(res, timings=timings)
-            t0 = time.perf_counter()  # the mirror's fit is the more confident: the image's again, from its points
-            again = self.fit_at_points(frame.image, back - PIXEL_ORIGIN)
+        if alt.success:  # the mirror's fit is accepted and the more confident: the image's again, from its points
+            t0 = time.perf_counter()
+            again = self.fit_at_points(frame.image, back)
             timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t0
-            if again.confidence < self.config.min_confidence or float(nme(again.landmarks + PIXEL_ORIGIN, back)) > agree:
-                return replace(res, timings=timings)
-            res = self._result(frame, "detected", again, timings)
-        return replace(res, landmarks=0.5 * (res.landmarks + back), confidence=0.5 * (res.confidence + alt.confidence),
-                       timings=timings)
+            if not self.loss_reason(again, shape, None) and float(nme(again.landmarks, back)) <= agree:
+                return self._averaged(self._result(frame, "detected", again, timings), alt, back, timings)
+        # the image's fit rejected: two dim fits that agree are accepted as a dim fit near a face is
+        if (res.success or not (fit.dim and alt_fit.dim) or float(nme(back, fit.landmarks)) > agree_dim
+                or self.loss_reason(alt_fit, shape, None, near=True) or self.loss_reason(fit, shape, None, near=True)):
+            return replace(res, timings=timings)
+        return self._averaged(self._result(frame, "detected", fit, timings), alt, back, timings)
+
+    def _averaged(self, res: FrameResult, alt: FrameResult, back: np.ndarray, timings: dict) -> FrameResult:
+        """``fit_still``'s result of two agreeing fits: res with the mean of its points and the mirror's moved back
+        (``back``, OpenCV's pixels), the mean confidence."""
+        return replace(res, landmarks=0.5 * (res.landmarks + back + PIXEL_ORIGIN),
+                       confidence=0.5 * (res.confidence + alt.confidence), timings=timings)
+
+    def _fit_one(self, frame) -> tuple[FrameResult, FitResult | None]:
+        """A one-frame ``track`` of an image (not None): (its result, the fit behind it, accepted or not; None when
+        no face was found)."""
+        res, timings = self.detect_and_fit(frame.image)
+        if res is None:
+            return self._result(frame, "lost", None, timings, "no face detected"), None
+        reason = self.loss_reason(res, frame.image.shape[:2], None)
+        return self._result(frame, "lost" if reason else "detected", res, timings, reason), res
 
     def fit_at_points(self, image: np.ndarray, points: np.ndarray) -> FitResult:
         """A detection's fit (``fit_starts``, then the landmark pass) from the rough pose fitted to 68 points

@@ -848,17 +848,54 @@ def test_fit_at_points_fits_the_face_the_points_are_on(synth_model):
 
 
 def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
-    """A blank still stays lost whether mirrored or not; the mirror is fitted only after an accepted fit."""
+    """A blank still stays lost whether mirrored or not; the mirror is fitted only after the image had a fit."""
     from aamtrack.track.replay import ReplayFrame
 
     tracker = Tracker(synth_model)
     calls = []
-    track = tracker.track
-    tracker.track = lambda frames: (calls.append(1), track(frames))[1]  # counts the fits, runs them as they are
+    detect_and_fit = tracker.detect_and_fit
+    tracker.detect_and_fit = lambda image: (calls.append(1), detect_and_fit(image))[1]  # counts, runs them as they are
     for img in (np.full((220, 220), 128, np.uint8), np.zeros((220, 220, 3), np.uint8)):
         res = tracker.fit_still(ReplayFrame(0, 0.0, img))
         assert not res.success and np.isnan(res.landmarks).all()
     assert len(calls) == 2
+
+
+def test_fit_still_takes_two_agreeing_dim_fits_and_not_one(synth_model):
+    """A still whose fit is rejected gets the mirror's view: two fits judged dim (``FitResult.dim``) at confidence
+    0.3 (between ``dim_tracked_min`` and ``min_confidence``) that agree are accepted, the points averaged; the same
+    fit alone (no mirror), two that disagree, two clear (not dim) fits, or fits below ``dim_tracked_min`` stay
+    rejected. The fits are the tracker's own on synthetic faces, their confidence and ``dim`` set afterwards."""
+    from dataclasses import replace
+
+    from aamtrack.mesh.landmarks import mirror_points
+    from aamtrack.track.replay import ReplayFrame
+
+    images, truth = synth.random_faces(2, np.random.default_rng(SEED + 43), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    real = tracker.detect_and_fit
+    cfg = tracker.config
+    for img, pts in zip(images, truth):
+        for conf, dim, shift, accepted in ((0.3, True, 0.0, True), (0.3, False, 0.0, False),
+                                           (0.5 * cfg.dim_tracked_min, True, 0.0, False), (0.3, True, 12.0, False)):
+            def judged(image, *, conf=conf, dim=dim, shift=shift, img=img):
+                res, timings = real(image)
+                moved = res.landmarks + [shift, 0.0] if image is not img else res.landmarks  # the mirror's moved
+                return replace(res, confidence=conf, dim=dim, landmarks=moved), timings
+            tracker.detect_and_fit = judged
+            alone = tracker.fit_still(ReplayFrame(0, 0.0, img), mirror=False)
+            both = tracker.fit_still(ReplayFrame(0, 0.0, img))
+            assert not alone.success and alone.reason.startswith("low confidence")
+            assert both.success == accepted, (conf, dim, shift, both.reason)
+            if accepted:
+                tracker.detect_and_fit = real
+                flip = tracker.fit_still(ReplayFrame(0, 0.0, np.ascontiguousarray(img[:, ::-1])), mirror=False)
+                own = tracker.fit_still(ReplayFrame(0, 0.0, img), mirror=False)
+                back = mirror_points(flip.landmarks, img.shape[1])
+                assert np.allclose(both.landmarks, 0.5 * (own.landmarks + back))
+                assert both.confidence == pytest.approx(conf)
+                assert np.linalg.norm(both.landmarks - pts, axis=1).mean() < 0.5  # sub-pixel, as a single fit
+    tracker.detect_and_fit = real
 
 
 def test_a_dim_fit_needs_less_confidence_only_where_a_face_just_was(synth_model):

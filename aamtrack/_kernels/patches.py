@@ -50,19 +50,21 @@ def _bilinear(img, x, y):
 def _atan2(y, x):
     """atan2 to about 1e-5 radians (tested): reduction to an angle in [0, pi/4] and an odd polynomial of degree
     11 for atan there; enough for soft binning, and cheaper than libm's exact atan2. Written with selects
-    only (no branches), so a loop over samples calling it is vectorised; atan2(0, 0) = 0."""
+    only (no branches), so a loop over samples calling it is vectorised; atan2(0, 0) = 0. Its constants are
+    float32, so float32 arguments are worked in float32 throughout (twice the lanes of float64)."""
+    f = np.float32
     ax = abs(x)
     ay = abs(y)
     swap = ay > ax
     num = ax if swap else ay
     den = ay if swap else ax
-    t = num / den if den > 0.0 else num * 0.0
+    t = num / den if den > f(0.0) else num * f(0.0)
     t2 = t * t
-    a = t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332
-                                                                                          - t2 * 0.01172120)))))
-    a = 0.5 * math.pi - a if swap else a
-    a = math.pi - a if x < 0.0 else a
-    return -a if y < 0.0 else a
+    a = t * (f(0.99997726) + t2 * (f(-0.33262347) + t2 * (f(0.19354346) + t2 * (f(-0.11643287) + t2 * (
+        f(0.05265332) - t2 * f(0.01172120))))))
+    a = f(0.5 * math.pi) - a if swap else a
+    a = f(math.pi) - a if x < f(0.0) else a
+    return -a if y < f(0.0) else a
 
 
 @numba.njit(**NJIT)
@@ -76,20 +78,22 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
     normalisation. (One fused loop with a branchy atan2 took 1.6x as long.)"""
     L = pts.shape[0]
     H, W = img.shape
+    flat = img.reshape(-1)  # (img is C-contiguous: ``kernels.landmark_descriptors``, ``landmark_cascade``)
     n = cells * cell
     G = n + 2
     c0 = 0.5 * (G - 1)
     patch = np.empty((G, G), np.float32)
     gxs = np.empty(n * n, np.float32)
     gys = np.empty(n * n, np.float32)
-    mags = np.empty(n * n, np.float64)
-    bs = np.empty(n * n, np.float64)
+    mags = np.empty(n * n, np.float32)  # float32 as the samples: the orientation pass vectorises twice as wide
+    bs = np.empty(n * n, np.float32)
     base_of = np.empty(n * n, np.int64)  # first bin of each interior sample's cell
     for i in range(n):
         for j in range(n):
             base_of[i * n + j] = ((i // cell) * cells + j // cell) * bins
     per = cells * cells * bins
-    to_bin = bins / (2.0 * math.pi)
+    to_bin = np.float32(bins / (2.0 * math.pi))
+    pi = np.float32(math.pi)
     ux, uy, vx, vy = scale * a00, scale * a10, scale * a01, scale * a11  # grid steps in level pixels
     ext_x = c0 * (abs(ux) + abs(vx))
     ext_y = c0 * (abs(uy) + abs(vy))
@@ -102,15 +106,18 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
             rx = cx + vx * dv - ux * c0
             ry = cy + vy * dv - uy * c0
             if inside:  # no clamping: the whole grid is in the image
-                for j in range(G):
+                for j in range(G):  # (on the flat image: 2-d indexing measured 10% slower)
                     x = rx + ux * j
                     y = ry + uy * j
                     x0 = int(x)
                     y0 = int(y)
-                    fx = x - x0
-                    fy = y - y0
-                    top = img[y0, x0] + fx * (img[y0, x0 + 1] - img[y0, x0])
-                    bot = img[y0 + 1, x0] + fx * (img[y0 + 1, x0 + 1] - img[y0 + 1, x0])
+                    fx = np.float32(x - x0)
+                    fy = np.float32(y - y0)
+                    at = y0 * W + x0
+                    v00 = flat[at]
+                    v01 = flat[at + W]
+                    top = v00 + fx * (flat[at + 1] - v00)
+                    bot = v01 + fx * (flat[at + W + 1] - v01)
                     patch[i, j] = top + fy * (bot - top)
             else:
                 for j in range(G):
@@ -123,7 +130,7 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
             gx = gxs[k]
             gy = gys[k]
             mags[k] = math.sqrt(gx * gx + gy * gy)
-            bs[k] = (_atan2(gy, gx) + math.pi) * to_bin
+            bs[k] = (_atan2(gy, gx) + pi) * to_bin
         o = out[li]
         for k in range(per):
             o[k] = 0.0

@@ -506,14 +506,13 @@ class Tracker:
         res, fit = self._fit_one(frame)
         if not mirror or fit is None:
             return res
-        width = frame.image.shape[1]
         alt, alt_fit = self._fit_one(ReplayFrame(frame.index, frame.timestamp,
                                                  np.ascontiguousarray(frame.image[:, ::-1])))
         timings = {k: res.timings.get(k, 0.0) + alt.timings.get(k, 0.0) for k in {*res.timings, *alt.timings}}
-        if alt_fit is None or not (res.success or alt.success or (fit.dim and alt_fit.dim)):
+        if alt_fit is None:
             return replace(res, timings=timings)
-        back = mirror_points(alt_fit.landmarks, width, origin=0.0)  # OpenCV's pixels, as the fits'
         shape = frame.image.shape[:2]
+        back = mirror_points(alt_fit.landmarks, shape[1], origin=0.0)  # OpenCV's pixels, as the fits'
         if res.success:
             if alt.success and float(nme(back, fit.landmarks)) <= agree:
                 return self._averaged(res, alt, back, timings)
@@ -526,8 +525,10 @@ class Tracker:
             if not self.loss_reason(again, shape, None) and float(nme(again.landmarks, back)) <= agree:
                 return self._averaged(self._result(frame, "detected", again, timings), alt, back, timings)
         # the image's fit rejected: two dim fits that agree are accepted as a dim fit near a face is
-        if (res.success or not (fit.dim and alt_fit.dim) or float(nme(back, fit.landmarks)) > agree_dim
-                or self.loss_reason(alt_fit, shape, None, near=True) or self.loss_reason(fit, shape, None, near=True)):
+        dim_pair = (not res.success and fit.dim and alt_fit.dim and float(nme(back, fit.landmarks)) <= agree_dim
+                    and not self.loss_reason(fit, shape, None, near=True)
+                    and not self.loss_reason(alt_fit, shape, None, near=True))
+        if not dim_pair:
             return replace(res, timings=timings)
         return self._averaged(self._result(frame, "detected", fit, timings), alt, back, timings)
 

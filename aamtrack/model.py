@@ -361,7 +361,7 @@ def load_model(path: str | Path) -> Model:
     except ModelFileError:
         raise
     except (OSError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile, zlib.error, EOFError,
-            MemoryError, OverflowError) as exc:
+            MemoryError, OverflowError, NotImplementedError) as exc:  # zipfile: unsupported features
         raise ModelFileError(f"{path}: not a readable aamtrack model ({exc.__class__.__name__}: {exc})") from None
 
 

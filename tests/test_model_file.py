@@ -245,3 +245,16 @@ def test_fuzzed_model_files_load_cleanly_or_fail_with_a_model_error(tmp_path, mo
         assert res.p.shape == (model.n_params,)
     assert failed > 100  # most damage is caught (zip CRCs, headers, checks)
     print(f"fuzz: {loaded} loaded and searched, {failed} refused with one clear error")
+
+
+def test_zip_feature_python_cannot_read_is_one_clear_error(tmp_path, model_path):
+    """A model file whose zip entries claim a feature ``zipfile`` does not implement (flag bit 5, compressed
+    patched data: seen by the fuzz test) is a ModelFileError, not a NotImplementedError traceback."""
+    data = bytearray(model_path.read_bytes())
+    at = data.find(b"PK\x01\x02")  # the first central directory entry; its flags are 8 bytes in
+    assert at > 0
+    data[at + 8] |= 0x20
+    bad = tmp_path / "patched.npz"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(ModelFileError, match="not a readable aamtrack model"):
+        load_model(bad)

@@ -144,7 +144,8 @@ def load_npz(path: str | Path) -> dict:
             return {k: data[k] for k in data.files}
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
+            NotImplementedError) as exc:  # zipfile: compression or flags it does not support
         raise InputError(f"{path}: cannot read .npz ({type(exc).__name__}: {exc})") from None
 
 

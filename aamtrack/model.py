@@ -31,11 +31,12 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade, sharpness, signal
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 8  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 9  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
 # 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
 # landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``); 8: a second landmark
-# validator for dim, noisy faces (``dim_validator/*``, ``Model.dim_validator``)
+# validator for dim, noisy faces (``dim_validator/*``, ``Model.dim_validator``); 9: a second set of couples for soft
+# faces (``soft_couple*/*``, ``Model.soft_couples``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -126,6 +127,7 @@ class Model:
     soft_above: float = math.inf  # ``landmark_cascade.sharpness`` above which a face takes ``soft_cascade``
     dim_validator: Validator | None = None  # the landmark validator for faces whose signal-to-noise is below
     dim_below: float = 0.0  # this (``landmark_cascade.signal_to_noise``)
+    soft_couples: tuple = ()  # the couples a search takes for a face softer than ``soft_above`` at its start (or none)
 
     @property
     def kind(self) -> str:
@@ -139,6 +141,16 @@ class Model:
         if self.soft_cascade is not None and sharpness(image, scale, pts) > self.soft_above:
             return self.soft_cascade
         return self.landmark_cascade
+
+    def couples_for(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple:
+        """The couples a search from the points pts (68, 2) (frame pixels; its start's) takes, read as
+        ``cascade_for`` reads a fit: ``soft_couples`` when the face looks softer than ``soft_above``, else
+        ``couples``. The sharp couples' updates, learned on sharp photos, lead a blurred face's search astray from
+        its coarsest couple on; the soft ones took cap12 blurred by 0.06 eye distances from NME 0.0367 to 0.0318
+        (``TrainConfig.soft_search_share``)."""
+        if self.soft_couples and sharpness(image, scale, pts) > self.soft_above:
+            return self.soft_couples
+        return self.couples
 
     def validator_for(self, image: np.ndarray, scale: float, pts: np.ndarray) -> Validator | None:
         """The landmark validator for the fit at pts (68, 2) (frame pixels, after the landmark cascade) in
@@ -173,9 +185,10 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays[f"tex{i}/pix_bary"] = t.frame.pix_bary
         arrays[f"tex{i}/mean"] = t.mean
         arrays[f"tex{i}/appearance"] = t.appearance
-    for j, c in enumerate(model.couples):
-        for k in _COUPLE_ARRAYS:
-            arrays[f"couple{j}/{k}"] = getattr(c, k)
+    for prefix, couples in (("couple", model.couples), ("soft_couple", model.soft_couples)):
+        for j, c in enumerate(couples):
+            for k in _COUPLE_ARRAYS:
+                arrays[f"{prefix}{j}/{k}"] = getattr(c, k)
     arrays["detector/box_points"] = model.detector_box_points
     v = model.validator
     arrays["validator/weights"], arrays["validator/mean"], arrays["validator/scale"] = v.weights, v.mean, v.scale
@@ -210,6 +223,7 @@ def save_model(model: Model, path: str | Path) -> None:
                      "soft": model.features.soft, "eps": model.features.eps, "blur": model.features.blur},
         "textures": [list(t.frame.shape) for t in model.textures],
         "couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.couples],
+        "soft_couples": [{"face_px": c.face_px, "texture": c.texture} for c in model.soft_couples],
         "validator": {"names": list(v.names), "bias": v.bias},
         "landmark_cascade": None if lc is None else {"halves": list(lc.halves), "cells": lc.spec.cells,
                                                      "cell": lc.spec.cell, "bins": lc.spec.bins,
@@ -324,24 +338,44 @@ def _texture(c: _Checker, i: int, shp, n_v: int, channels: int) -> Texture:
     return Texture(TextureFrame((h, w), xy, vid, bary), mean, app)
 
 
-def _couple(c: _Checker, j: int, spec: dict, textures: tuple, n_params: int) -> Couple:
-    face_px, t = float(spec["face_px"]), int(spec["texture"])
+def _couple(c: _Checker, j: int, spec: dict, textures: tuple, n_params: int, prefix: str = "couple") -> Couple:
+    name = f"{prefix.replace('_', ' ')} {j}"
+    try:
+        face_px, t = float(spec["face_px"]), int(spec["texture"])
+    except (KeyError, TypeError, ValueError):
+        c.fail(f"unreadable {name} settings")
     if not (np.isfinite(face_px) and 4 <= face_px <= 4096):
-        c.fail(f"couple {j} face size {face_px}")
+        c.fail(f"{name} face size {face_px}")
     if not 0 <= t < len(textures):
-        c.fail(f"couple {j} names texture {t} of {len(textures)}")
+        c.fail(f"{name} names texture {t} of {len(textures)}")
     D = len(textures[t].mean)
-    free = c.index(f"couple{j}/free", (None,), n_params, "parameter")
+    free = c.index(f"{prefix}{j}/free", (None,), n_params, "parameter")
     n = len(free)
     if n == 0 or len(np.unique(free)) != n:
-        c.fail(f"couple {j} has empty or repeated parameter indices")
-    cascade = c.array(f"couple{j}/cascade", np.float32, (None, n, D))
-    U = c.array(f"couple{j}/update_matrix", np.float32, (n, None))
+        c.fail(f"{name} has empty or repeated parameter indices")
+    cascade = c.array(f"{prefix}{j}/cascade", np.float32, (None, n, D))
+    U = c.array(f"{prefix}{j}/update_matrix", np.float32, (n, None))
     if cascade.shape[0] == 0 and U.shape[1] != D:
-        c.fail(f"couple {j} has neither a cascade nor an update matrix of {D} columns")
-    return Couple(face_px, t, free, cascade, c.array(f"couple{j}/cascade_bias", np.float64, (len(cascade), n)),
-                  U, c.array(f"couple{j}/prior_step", np.float64, (n, n) if U.shape[1] else (None, None)),
-                  c.array(f"couple{j}/prior", np.float64, (n,) if U.shape[1] else (None,)))
+        c.fail(f"{name} has neither a cascade nor an update matrix of {D} columns")
+    return Couple(face_px, t, free, cascade, c.array(f"{prefix}{j}/cascade_bias", np.float64, (len(cascade), n)),
+                  U, c.array(f"{prefix}{j}/prior_step", np.float64, (n, n) if U.shape[1] else (None, None)),
+                  c.array(f"{prefix}{j}/prior", np.float64, (n,) if U.shape[1] else (None,)))
+
+
+def _soft_couples(c: _Checker, specs, couples: tuple, textures: tuple, n_params: int, soft_above: float) -> tuple:
+    """The couples for soft faces: none, or one learned cascade for each of ``couples``, at the same face sizes
+    and textures (the search swaps one set for the other), read only with the soft landmark cascade's gate."""
+    if not specs:
+        return ()
+    if not isinstance(specs, list) or len(specs) != len(couples):
+        c.fail(f"soft couples do not match the model's {len(couples)} couples")
+    if not math.isfinite(soft_above):
+        c.fail("soft couples without a soft landmark cascade's sharpness gate")
+    soft = tuple(_couple(c, j, spec, textures, n_params, "soft_couple") for j, spec in enumerate(specs))
+    for j, (a, b) in enumerate(zip(soft, couples, strict=True)):
+        if a.face_px != b.face_px or a.texture != b.texture or a.n_stages == 0 or not np.array_equal(a.free, b.free):
+            c.fail(f"soft couple {j} differs from couple {j} in face size, texture or parameters, or has no cascade")
+    return soft
 
 
 def load_model(path: str | Path) -> Model:
@@ -408,12 +442,13 @@ def _read(c: _Checker, meta: dict) -> Model:
     if lv is not None and lc is None:
         c.fail("a landmark validator without a landmark cascade")
     soft, above = _soft_cascade(c, meta.get("soft_landmarks"), lc)
+    soft_couples = _soft_couples(c, meta.get("soft_couples"), couples, textures, n_params, above)
     n_z = 0 if lc is None else N_LANDMARKS * lc.basis.shape[2]
     dim, below = _dim_validator(c, meta.get("dim_validator"), lv, n_z)
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
                  landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv, n_z),
-                 soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below)
+                 soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below, soft_couples=soft_couples)
 
 
 def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:

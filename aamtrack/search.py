@@ -79,9 +79,9 @@ class Searcher:
         lo[n_q:] = hi[n_q:] = np.clip(shape_params, self.lo[n_q:], self.hi[n_q:])
         return lo, hi
 
-    def _couple_run(self, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi) -> int:
-        """One couple on p (in place) on the level ``img`` resampled by r. Returns iterations."""
-        c = self.model.couples[k]
+    def _couple_run(self, c, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi) -> int:
+        """One couple c (the model's couple k, or its soft twin) on p (in place) on the level ``img`` resampled by
+        r. Returns iterations."""
         t = self.model.textures[c.texture]
         shift = level_shift(r)
         if c.n_stages:
@@ -96,9 +96,12 @@ class Searcher:
         return int(n_it)
 
     def fit(self, levels: Levels, p0: np.ndarray, shape_params: np.ndarray | None = None, *,
-            factors: list[float] | None = None, first: int = 0, landmarks: bool = True) -> FitResult:
+            factors: list[float] | None = None, first: int = 0, landmarks: bool = True,
+            soft: bool | None = None) -> FitResult:
         """Search from p0 (n_params,) on a frame's ``levels``, couples ``first``..last, each at the resampling
-        ``factors[k]`` (default: from p0's face size), with the shape units pinned to ``shape_params`` if given;
+        ``factors[k]`` (default: from p0's face size), with the shape units pinned to ``shape_params`` if given
+        (a face that looks soft at p0 takes the model's soft couples, ``Model.couples_for``, unless ``soft`` says
+        which: a tracked frame takes its previous frame's verdict, ``FitResult.soft``, for free);
         then the landmark cascade on the result (``refine_landmarks``) unless ``landmarks`` is False (a caller
         choosing among several fits refines only the one it keeps)."""
         p = np.array(p0, dtype=np.float64)
@@ -107,8 +110,14 @@ class Searcher:
         factors = self.factors(p) if factors is None else factors
         lo, hi = self.bounds(shape_params)
         np.clip(p, lo, hi, out=p)
-        iters = tuple(self._couple_run(k, levels.get(factors[k]), factors[k], p, lo, hi)
-                      for k in range(first, len(self.model.couples)))
+        couples = self.model.couples
+        if self.model.soft_couples and soft is None:  # a soft face takes the couples learned on soft faces
+            couples = self.model.couples_for(levels.resampled(factors[-1]), factors[-1],
+                                             self.model.shape.landmark_map @ self.project(p))
+        elif self.model.soft_couples and soft:
+            couples = self.model.soft_couples
+        iters = tuple(self._couple_run(couples[k], k, levels.get(factors[k]), factors[k], p, lo, hi)
+                      for k in range(first, len(couples)))
         stats = self.statistics(levels, p, factors[-1])
         verts = self.project(p)
         res = FitResult(p=p, landmarks=self.model.shape.landmark_map @ verts, vertices=verts, residual=stats[0],

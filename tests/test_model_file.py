@@ -31,6 +31,10 @@ def test_round_trip(tmp_path, synth_model):
     assert m.soft_above == synth_model.soft_above and np.array_equal(sc.regressors, sc0.regressors)
     assert np.array_equal(sc.biases, sc0.biases) and np.array_equal(sc.shape_regressors, sc0.shape_regressors)
     assert sc.basis is m.landmark_cascade.basis and sc.ref is m.landmark_cascade.ref  # stored once, shared
+    assert len(synth_model.soft_couples) == len(synth_model.couples)  # the synthetic model has soft couples too
+    for a, b in zip(m.soft_couples, synth_model.soft_couples, strict=True):
+        assert a.face_px == b.face_px and np.array_equal(a.free, b.free)
+        assert np.array_equal(a.cascade, b.cascade) and np.array_equal(a.cascade_bias, b.cascade_bias)
     dv, dv0 = m.dim_validator, synth_model.dim_validator
     assert dv0 is not None and synth_model.dim_below > 0  # the synthetic model has one too
     assert m.dim_below == synth_model.dim_below and dv.bias == dv0.bias
@@ -55,6 +59,24 @@ def test_soft_faces_take_the_soft_cascade(synth_model, synth_data):
         synth_model.landmark_cascade
     assert replace(synth_model, soft_cascade=None, soft_above=0.0).cascade_for(gray, 1.0, points[0]) is \
         synth_model.landmark_cascade
+
+
+def test_soft_faces_take_the_soft_couples(synth_model, synth_data):
+    """``Model.couples_for``: a search starting on a face above the soft landmark cascade's threshold takes the
+    soft couples, below it the sharp ones; a model without soft couples always takes its couples."""
+    from dataclasses import replace
+
+    from aamtrack.landmark_cascade import sharpness
+
+    images, points = synth_data
+    gray = cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY).astype(np.float32) if images[0].ndim == 3 else \
+        images[0].astype(np.float32)
+    s = sharpness(gray, 1.0, points[0])
+    m = synth_model
+    assert m.soft_couples and m.soft_couples is not m.couples
+    assert replace(m, soft_above=s - 0.01).couples_for(gray, 1.0, points[0]) is m.soft_couples
+    assert replace(m, soft_above=s + 0.01).couples_for(gray, 1.0, points[0]) is m.couples
+    assert replace(m, soft_couples=(), soft_above=0.0).couples_for(gray, 1.0, points[0]) is m.couples
 
 
 def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
@@ -172,13 +194,19 @@ def _damaged(synth_model):
          "dim faces without a landmark validator"),
         ("dim descriptor weights length", {"dim_validator/descriptor_weights":
                                            synth_model.dim_validator.descriptor_weights[:-1]}, {}, "has shape"),
+        ("soft couples of another count", {}, {"soft_couples": [{"face_px": 32.0, "texture": 0}]},
+         "soft couples do not match"),
+        ("soft couple of another size", {}, {"soft_couples": [{"face_px": 2.0 * c.face_px, "texture": c.texture}
+                                                              for c in synth_model.couples]}, "differs from couple 0"),
+        ("soft couple nan cascade", {"soft_couple0/cascade": np.full_like(c0.cascade, np.nan)}, {}, "non-finite"),
+        ("soft couples without a gate", {}, {"soft_landmarks": None}, "without a soft landmark cascade's"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(27))
+@pytest.mark.parametrize("case", range(31))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

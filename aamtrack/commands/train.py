@@ -43,8 +43,8 @@ def register(sub) -> None:
     p.add_argument("--report", type=Path, help="write each image's shape-fit residual (px) to this CSV")
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of training's random draws (default 0: the shipped models'); the same data and seed "
-                        "give the same model, array for array, and another seed shows how much a result owes to "
-                        "them")
+                        "give the same model up to floating-point rounding, and another seed shows how much a "
+                        "result owes to them")
     p.set_defaults(func=run)
 
 
@@ -73,10 +73,11 @@ def _parse_couples(text: str | None) -> tuple:
 
 def model_bytes_bound(config: TrainConfig) -> int:
     """An upper bound of a model file's size: every array uncompressed (a texture frame has fewer than
-    tex_width^2 pixels of at most 2 feature channels, a couple fewer than 64 parameters, each stage of its
-    cascade (or its update matrix) one number per parameter and texture value; 8 bytes a number)."""
+    tex_width^2 pixels of at most 2 feature channels, a couple (and its soft twin) fewer than 64 parameters, each
+    stage of its cascade (or its update matrix) one number per parameter and texture value; 8 bytes a number)."""
     n_px = sum(tex * tex for _, tex in config.couples)
-    per_px = 8 * (2 + 3 + 3 + 2 * (1 + config.n_appearance + 64 * max(config.n_stages, 1)))
+    sets = 2 if config.soft_search_share > 0 else 1
+    per_px = 8 * (2 + 3 + 3 + 2 * (1 + config.n_appearance + 64 * sets * max(config.n_stages, 1)))
     return n_px * per_px + (1 << 20)  # + mesh, maps and metadata
 
 

@@ -628,8 +628,8 @@ def test_the_landmark_pass_keeps_the_more_confident_fit(synth_model, pass_conf, 
     calls, passed = [], []
 
     class Marked(Tracker):
-        def search_from(self, image, start, shape_params=None, *, last=None):
-            res, t = super().search_from(image, start, shape_params, last=last)
+        def search_from(self, image, start, shape_params=None, *, last=None, soft=None):
+            res, t = super().search_from(image, start, shape_params, last=last, soft=soft)
             calls.append(last)
             passed.append(dc_replace(res, confidence=pass_conf))
             return passed[-1], t
@@ -931,3 +931,33 @@ def test_a_dim_fit_needs_less_confidence_only_where_a_face_just_was(synth_model)
     turned = res.p.copy()
     turned[2] += 0.5
     assert not tracker._near(turned, res.p)
+
+
+def test_a_soft_track_searches_with_the_soft_couples(synth_model):
+    """Tracked frames of a blurred face search with the soft couples (the previous fit was a soft face's,
+    ``FitResult.soft``, so no sharpness is measured again): with the soft couples swapped for the sharp ones the
+    tracked points change on blurred frames, and not on sharp ones; and the soft couples keep the track within
+    half a pixel (on these frames, each starting near the last fit, the sharp couples do as well: their gain is
+    from far starts, ``test_soft_couples_search_blurred_faces_better``)."""
+    import cv2
+    from dataclasses import replace
+
+    frames, truth = synth.moving_face_frames(6)
+    eye = float(np.linalg.norm(truth[0][45] - truth[0][36]))
+    blurred = [cv2.GaussianBlur(f, (0, 0), 0.06 * eye) for f in frames]
+    swapped = replace(synth_model, soft_couples=synth_model.couples)  # the same gate, the sharp updates
+
+    def track(model, images):
+        return list(Tracker(model).track(synth_frame(i, f) for i, f in enumerate(images)))
+
+    sharp_a, sharp_b = track(synth_model, frames), track(swapped, frames)
+    assert all(r.success for r in sharp_a)
+    assert all(np.array_equal(a.landmarks, b.landmarks) for a, b in zip(sharp_a, sharp_b))
+    soft_a, soft_b = track(synth_model, blurred), track(swapped, blurred)
+    assert [r.status for r in soft_a] == ["detected"] + ["tracked"] * 5
+    assert all(b.success for b in soft_b)
+    assert not any(np.allclose(a.landmarks, b.landmarks) for a, b in zip(soft_a[1:], soft_b[1:]))
+    err_a = np.mean([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(soft_a, truth)])
+    err_b = np.mean([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(soft_b, truth)])
+    print(f"blurred track, mean px error: soft couples {err_a:.2f}, sharp couples in their place {err_b:.2f}")
+    assert err_a < 0.5  # sub-pixel

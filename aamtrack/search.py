@@ -132,8 +132,8 @@ class Searcher:
         soft face takes the model's soft cascade (``Model.cascade_for``).
         The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
         statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one (for a dim,
-        noisy face, its validator for those: ``Model.validator_for``). ``last`` > 0 runs only the
-        cascade's last ``last`` stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
+        noisy face, its validator for those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
+        ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
         if self.model.landmark_cascade is None:
             return res
         if r is None:
@@ -142,11 +142,12 @@ class Searcher:
         lc = self.model.cascade_for(img, r, res.landmarks)
         first = max(0, lc.n_stages - last) if last > 0 else 0
         pts, z, prior = lc.run(img, r, res.landmarks, first)
-        lv = self.model.validator_for(img, r, pts)
+        soft = lc is not self.model.landmark_cascade
+        lv = self.model.validator_for(img, r, pts, soft=soft)
         conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior,
                        dim=lv is not None and lv is self.model.dim_validator,
-                       soft=lc is not self.model.landmark_cascade)
+                       soft=soft)
 
     def project(self, p: np.ndarray) -> np.ndarray:
         """(n_vertices, 2) image pixels of the search vector p."""

@@ -39,6 +39,10 @@ def test_round_trip(tmp_path, synth_model):
     assert dv0 is not None and synth_model.dim_below > 0  # the synthetic model has one too
     assert m.dim_below == synth_model.dim_below and dv.bias == dv0.bias
     assert np.array_equal(dv.weights, dv0.weights) and np.array_equal(dv.descriptor_weights, dv0.descriptor_weights)
+    sv, sv0 = m.soft_validator, synth_model.soft_validator
+    assert sv0 is not None  # the synthetic model has a validator for soft faces too
+    assert sv.bias == sv0.bias and np.array_equal(sv.weights, sv0.weights)
+    assert np.array_equal(sv.descriptor_weights, sv0.descriptor_weights)
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
 
 
@@ -82,7 +86,8 @@ def test_soft_faces_take_the_soft_couples(synth_model, synth_data):
 def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
     """``Model.validator_for``: a face whose signal-to-noise is below the threshold takes the validator for dim
     faces, above it the landmark validator (the threshold moved about the face's own value); a model without one
-    always takes the landmark validator."""
+    always takes the landmark validator. A fit of the soft landmark cascade (``soft``) takes the validator for soft
+    faces unless it is dim."""
     from dataclasses import replace
 
     from aamtrack.landmark_cascade import signal_to_noise
@@ -96,6 +101,11 @@ def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
     assert replace(m, dim_below=s + 0.01).validator_for(gray, 1.0, points[0]) is m.dim_validator
     assert replace(m, dim_below=s - 0.01).validator_for(gray, 1.0, points[0]) is m.landmark_validator
     assert replace(m, dim_validator=None, dim_below=1e3).validator_for(gray, 1.0, points[0]) is m.landmark_validator
+    # a fit of the soft landmark cascade takes the validator for soft faces, unless the face is dim
+    assert replace(m, dim_below=s - 0.01).validator_for(gray, 1.0, points[0], soft=True) is m.soft_validator
+    assert replace(m, dim_below=s + 0.01).validator_for(gray, 1.0, points[0], soft=True) is m.dim_validator
+    assert replace(m, soft_validator=None, dim_below=s - 0.01).validator_for(gray, 1.0, points[0], soft=True) is \
+        m.landmark_validator
 
 
 def _rewrite_meta(path, out, **changes):
@@ -200,13 +210,18 @@ def _damaged(synth_model):
                                                               for c in synth_model.couples]}, "differs from couple 0"),
         ("soft couple nan cascade", {"soft_couple0/cascade": np.full_like(c0.cascade, np.nan)}, {}, "non-finite"),
         ("soft couples without a gate", {}, {"soft_landmarks": None}, "without a soft landmark cascade's"),
+        ("soft validator without a soft cascade", {}, {"soft_landmarks": None, "soft_couples": []},
+         "soft faces without a landmark validator"),
+        ("soft validator descriptor weights length", {"soft_validator/descriptor_weights":
+                                                      synth_model.soft_validator.descriptor_weights[:-1]}, {},
+         "has shape"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(31))
+@pytest.mark.parametrize("case", range(33))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

@@ -116,6 +116,18 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
     return np.clip(out + rng.normal(0.0, rng.uniform(3.0, 14.0), gray.shape), 0, 255).astype(np.float32)
 
 
+def soft_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
+    """A blurred copy of a grey (H, W) float32 image for the validator of soft faces (``Model.soft_validator``):
+    Gaussian blur of sigma 0.02-0.08 outer eye-corner distances (``eye_px``), the range the soft couples and soft
+    landmark cascade learn from, with mild sensor noise (sigma 2-8 grey levels) a third of the time."""
+    import cv2
+
+    out = cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(0.02, 0.08) * eye_px))
+    if rng.random() < 0.3:
+        out = np.clip(out + rng.normal(0.0, rng.uniform(2.0, 8.0), out.shape), 0, 255)
+    return out.astype(np.float32)
+
+
 def dark_noise_image(shape: tuple, rng: np.random.Generator) -> np.ndarray:
     """A grey (H, W) float32 frame with no face for the validator of dim faces: a dark level (10-40) and sensor
     noise (sigma 3-10), as a camera with the lights out gives."""

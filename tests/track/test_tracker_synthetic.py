@@ -961,3 +961,23 @@ def test_a_soft_track_searches_with_the_soft_couples(synth_model):
     err_b = np.mean([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(soft_b, truth)])
     print(f"blurred track, mean px error: soft couples {err_a:.2f}, sharp couples in their place {err_b:.2f}")
     assert err_a < 0.5  # sub-pixel
+
+
+def test_blurred_blank_frames_are_never_tracked(synth_model):
+    """After a blurred face (fits a soft face's cascades and validator may judge), blurred noise, blurred blocks
+    and a blurred grey ramp are each reported lost, and the face is tracked again after the gap."""
+    import cv2
+
+    frames, pts = synth.moving_face_frames(20)
+    eye = float(np.linalg.norm(pts[0][45] - pts[0][36]))
+    h, w = frames[0].shape[:2]
+    rng = np.random.default_rng(5)
+    blocks = cv2.resize(rng.integers(0, 256, (6, 8, 3), dtype=np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)
+    ramp = np.repeat(np.linspace(40, 220, w, dtype=np.float32)[None, :, None], h, 0).repeat(3, 2).astype(np.uint8)
+    blanks = [rng.integers(0, 256, (h, w, 3), dtype=np.uint8), blocks, ramp]
+    soft = [cv2.GaussianBlur(f, (0, 0), 0.06 * eye) for f in frames[:6] + blanks * 2 + frames[12:]]
+    assert synth_model.soft_validator is not None
+    results = list(Tracker(synth_model).track(synth_frame(i, f) for i, f in enumerate(soft)))
+    assert all(r.success for r in results[:6])
+    assert all(not r.success for r in results[6:12])  # no blurred blank reported tracked
+    assert all(r.success for r in results[13:])

@@ -118,3 +118,20 @@ def test_dim_copies_are_dark_or_flat_and_noisy_and_keep_the_image_format():
     assert max(snr) < 0.5 * snr0 and np.median(snr) < 4.5
     dark = dark_noise_image((60, 70), rng)
     assert dark.shape == (60, 70) and dark.dtype == np.float32 and 5 < dark.mean() < 45 and dark.std() > 2
+
+
+def test_soft_copies_are_softer_and_keep_the_image_format():
+    """``soft_copy``: every copy looks softer than the image (``sharpness`` up) and stays float32 of its shape."""
+    import cv2
+
+    from aamtrack.landmark_cascade import sharpness
+    from aamtrack.train.validator import soft_copy
+
+    rng = np.random.default_rng(SEED)
+    gray = cv2.GaussianBlur(rng.uniform(0, 255, (200, 200)).astype(np.float32), (0, 0), 1.0)
+    pts = np.array([[50.0, 50.0], [150.0, 150.0]])
+    s0 = sharpness(gray, 1.0, pts)
+    for _ in range(20):
+        out = soft_copy(gray, 100.0, rng)
+        assert out.shape == gray.shape and out.dtype == np.float32
+        assert sharpness(out, 1.0, pts) > s0 + 0.05

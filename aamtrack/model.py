@@ -161,10 +161,9 @@ class Model:
         image's noise (``signal_to_noise``) is below ``dim_below``; else ``soft_validator`` for a fit of the soft
         landmark cascade (``soft``, as ``cascade_for`` picked it; helen_test blurred by 0.06 eye distances, 3D:
         89.1% -> 90.9% of the stills within NME 0.08, none of 330 blurred non-face stills accepted); else
-        ``landmark_validator``. One validator for
-        both kinds of face either refused good fits of small faces in a dim room (learned on each degradation
-        alone) or, learned on them too, accepted more bad fits of clear faces (benchmarks/README.md,
-        robustness)."""
+        ``landmark_validator``. One validator for both kinds of face either refused good fits of small faces in a
+        dim room (learned on each degradation alone) or, learned on them too, accepted more bad fits of clear
+        faces (benchmarks/README.md, robustness)."""
         if self.dim_validator is not None and signal_to_noise(image, scale, pts) < self.dim_below:
             return self.dim_validator
         if soft and self.soft_validator is not None:

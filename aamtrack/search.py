@@ -133,7 +133,8 @@ class Searcher:
         The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
         statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one (for a dim,
         noisy face, its validator for those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
-        ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames, ``TrackerConfig.landmark_stages_tracked``)."""
+        ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames,
+        ``TrackerConfig.landmark_stages_tracked``)."""
         if self.model.landmark_cascade is None:
             return res
         if r is None:

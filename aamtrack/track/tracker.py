@@ -218,8 +218,8 @@ class Tracker:
         """Search from each start (n_params,) on one crop of the frame around them all (exact: the model is
         translation-equivariant), keep the most confident fit and run the landmark cascade on it (unless
         ``landmarks`` is False; its ``last`` stages only when given, ``Searcher.refine_landmarks``);
-        ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples (``Searcher.fit``). Returns (result in frame coordinates, seconds spent
-        on the crop's feature images)."""
+        ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples (``Searcher.fit``).
+        Returns (result in frame coordinates, seconds spent on the crop's feature images)."""
         t0 = time.perf_counter()
         levels, off = self.crop(image, starts) if crop is None else crop
         crop_starts = []

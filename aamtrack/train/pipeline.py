@@ -36,7 +36,7 @@ from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
-from .validator import (dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
+from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
                         landmark_validator_fit, logistic_fit, non_face_images, soft_copy)
 
 log = logging.getLogger(__name__)
@@ -333,9 +333,8 @@ def _blurred_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig:
     pick = rng.permutation(n_sharp)[:int(round(share * n_sharp))]
     images, scales, copy_fits, copy_owner = [], [], [], []
     for j, i in enumerate(pick):
-        eye = float(np.linalg.norm(pts[i, 45] - pts[i, 36]))
-        blurred = cv2.GaussianBlur(gray[i], (0, 0), max(0.3, rng.uniform(*eye_range) * eye))
-        levels = Levels(blurred, model.features)
+        levels = Levels(blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), eye_range, rng),
+                        model.features)
         f = [fk[i] for fk in factors]
         images.append(levels.resampled(f[-1]))
         scales.append(f[-1])
@@ -403,8 +402,7 @@ def _augment(images, points, mirror: bool, blur_share: float = 0.0, blur_eye: tu
         pick = rng.permutation(len(gray))[:int(round(blur_share * len(gray)))]
         blurred = []
         for i in pick:
-            sigma = rng.uniform(*blur_eye) * float(np.linalg.norm(pts[i, 45] - pts[i, 36]))
-            blurred.append(cv2.GaussianBlur(gray[i], (0, 0), max(sigma, 0.3)))
+            blurred.append(blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), blur_eye, rng))
         gray = gray + blurred
         pts = np.concatenate([pts, pts[pick]])
         parent = np.r_[parent, pick]
@@ -475,8 +473,8 @@ def _soft_couples(gray, pts, P, factors, owner_group, n_sharp: int, det_deltas, 
     pick = rng.permutation(n_sharp)[:int(round(config.soft_search_share * n_sharp))]
     feats = [[] for _ in config.couples]
     for i in progress(pick, desc="soft copies", unit="img"):
-        sigma = rng.uniform(*config.landmark_blur_eye) * float(np.linalg.norm(pts[i, 45] - pts[i, 36]))
-        lv = Levels(cv2.GaussianBlur(gray[i], (0, 0), max(sigma, 0.3)), config.feature_spec)
+        lv = Levels(blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), config.landmark_blur_eye,
+                                 rng), config.feature_spec)
         for k in range(len(config.couples)):  # coarse to fine, as the sharp images' levels were made
             feats[k].append(lv.get(factors[k][i]))
     starts, owner = perturbed_starts(P[pick], free_all, det_deltas, sm.spreads(), sm.frontal_width(), lo, hi,
@@ -816,7 +814,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                "landmark_s": t_lmk,
                "landmark_validator_s": time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val - t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
-           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record, "soft_stages": soft_search_record, "dim_validator_fit": dim_record,
+           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record, "soft_stages": soft_search_record,
+           "dim_validator_fit": dim_record,
            "soft_validator_fit": soft_val_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
            "train_final_nme_median": float(np.median(final_err[:n0])), "timings": timings}

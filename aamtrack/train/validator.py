@@ -72,17 +72,23 @@ def non_face_images(shape: tuple, rng: np.random.Generator) -> list[np.ndarray]:
 DEGRADATIONS = ("blur", "noise", "dark", "low_contrast")
 
 
+def blurred_copy(gray: np.ndarray, eye_px: float, eye_range: tuple, rng: np.random.Generator) -> np.ndarray:
+    """A Gaussian blur of a grey image, sigma drawn uniformly in ``eye_range`` outer eye-corner distances
+    (``eye_px`` pixels), at least 0.3 px: how training makes every blurred copy (one draw of ``rng``)."""
+    import cv2
+
+    return cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(*eye_range) * eye_px))
+
+
 def degraded(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
     """A copy of a grey (H, W) float32 image under one of ``DEGRADATIONS``, drawn at random: Gaussian blur of
     sigma 0.02-0.07 outer eye-corner distances (``eye_px``), Gaussian noise of sigma 5-30 grey levels, a gain of
     0.15-0.5 (dark), or contrast x0.2-0.5 about mid grey. The landmark validator learns what a face looks like
     through them too: learned on sharp photos only, it rejected 126 of 247 good fits of helen_test blurred by
     0.06 eye distances (prototype, 3D model)."""
-    import cv2
-
     kind = DEGRADATIONS[rng.integers(len(DEGRADATIONS))]
     if kind == "blur":
-        return cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(0.02, 0.07) * eye_px))
+        return blurred_copy(gray, eye_px, (0.02, 0.07), rng)
     if kind == "noise":
         return np.clip(gray + rng.normal(0.0, rng.uniform(5.0, 30.0), gray.shape), 0, 255).astype(np.float32)
     if kind == "dark":
@@ -108,7 +114,7 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
                 small = cv2.GaussianBlur(small, (0, 0), max(0.3, rng.uniform(0.02, 0.07) * eye_px * f))
             out = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
         else:
-            out = cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(0.02, 0.07) * eye_px))
+            out = blurred_copy(gray, eye_px, (0.02, 0.07), rng)
     if rng.random() < 0.6:
         out = out * rng.uniform(0.15, 0.5)
     else:
@@ -120,9 +126,7 @@ def soft_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.n
     """A blurred copy of a grey (H, W) float32 image for the validator of soft faces (``Model.soft_validator``):
     Gaussian blur of sigma 0.02-0.08 outer eye-corner distances (``eye_px``), the range the soft couples and soft
     landmark cascade learn from, with mild sensor noise (sigma 2-8 grey levels) a third of the time."""
-    import cv2
-
-    out = cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(0.02, 0.08) * eye_px))
+    out = blurred_copy(gray, eye_px, (0.02, 0.08), rng)
     if rng.random() < 0.3:
         out = np.clip(out + rng.normal(0.0, rng.uniform(2.0, 8.0), out.shape), 0, 255)
     return out.astype(np.float32)

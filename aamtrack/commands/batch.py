@@ -211,7 +211,8 @@ def _init_worker(progress, quiet: bool) -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     import cv2
 
-    cv2.setNumThreads(1)
+    if cv2.getNumThreads() != 1:  # (forked from ``_run_local``, it has 1 already: a change now could hang)
+        cv2.setNumThreads(1)
     if quiet:  # as cli.quiet_native_logs in the parent (FFmpeg's level comes with the environment)
         cv_log = getattr(getattr(cv2, "utils", None), "logging", None)
         if cv_log:
@@ -265,10 +266,18 @@ def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
         finally:
             bar.close()
         return
+    import cv2
+
     ctx = _pool_context()
     progress = ctx.Queue()
     quiet = os.environ.get("OPENCV_FFMPEG_LOGLEVEL") == "-8"
     stop = threading.Event()
+    # OpenCV's thread pool does not survive a fork: a worker forked while the parent's pool threads existed could
+    # hang for ever in its first OpenCV call (cv2.setNumThreads in ``_init_worker``: seen once in a test run, and
+    # every time when the pool was busy in another thread at the fork). With one thread OpenCV keeps no pool
+    # threads, so none are forked; the parent only coordinates while the workers run, and gets its threads back.
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=_init_worker,
                                initargs=(progress, quiet))
     pump = bar = None
@@ -317,6 +326,7 @@ def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
             pump.join()
         if bar is not None:
             bar.close()
+        cv2.setNumThreads(threads)  # (the workers were all forked at the first submit)
     pool.shutdown(wait=True)
     progress.close()
 

@@ -89,6 +89,51 @@ def test_rerun_skips_finished_inputs_unless_overwrite_or_other_options(tmp_path,
     assert [rows_by_name(out)[f"clip{k}.avi"]["status"] for k in range(3)] == ["done"] * 3
 
 
+FORK_WHILE_BUSY = """
+import sys, threading
+from pathlib import Path
+import cv2
+import numpy as np
+from aamtrack.commands.batch import run_batch, run_options
+clips, model, out = sys.argv[1].split(","), Path(sys.argv[2]), Path(sys.argv[3])
+opts = run_options(model_path=model, overlay=False, pts=False, report=False, replay=False, fps=None, smooth=None)
+big = np.random.default_rng(0).random((1500, 1500), np.float32)
+stop = threading.Event()
+def spin():  # OpenCV's thread pool at work in another thread whenever the batch forks its workers
+    while not stop.is_set():
+        cv2.GaussianBlur(big, (0, 0), 3.0)
+t = threading.Thread(target=spin)
+t.start()
+try:
+    for i in range(3):
+        rows = run_batch(clips, out_dir=out / str(i), model_path=model, options=opts, jobs=2, progress=False)
+        print(i, [r["status"] for r in rows], flush=True)
+finally:
+    stop.set()
+    t.join()
+"""
+
+
+def test_workers_forked_while_opencv_threads_are_busy_do_not_hang(tmp_path, folder, model_file):
+    """OpenCV's thread pool does not survive a fork: before the batch kept OpenCV to one thread while forking, a
+    worker forked with the pool at work hung for ever in its first OpenCV call (this script, every time)."""
+    import os
+    import signal
+    import subprocess
+
+    clips = ",".join(str(folder / f"clip{k}.avi") for k in range(3))
+    proc = subprocess.Popen([sys.executable, "-c", FORK_WHILE_BUSY, clips, str(model_file), str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=240)  # a hang fails this test, not the whole run
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)  # the script and its hung workers
+        proc.communicate()
+        pytest.fail("a batch with --jobs 2 hung while OpenCV's threads were busy")
+    assert proc.returncode == 0, err[-2000:]
+    assert out.splitlines() == [f"{i} ['done', 'done', 'done']" for i in range(3)], out
+
+
 def test_inputs_sharing_a_stem_get_their_own_folders(tmp_path, model_file):
     frames, _ = synth.moving_face_frames(4)
     for sub in ("a", "b"):

@@ -85,6 +85,10 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
                     counts["rejected"] += 1
                 else:
                     counts["no_face"] += 1
+        if counts["fitted"] == 0:  # bad input: one line, nothing written
+            raise InputError(f"{display_name(input_)}: no face fitted in any of its {counts['images']} images "
+                             f"({counts['rejected']} rejected, {counts['no_face']} without a face found, "
+                             f"{counts['unreadable']} unreadable)")
         summary = {"input": display_name(input_), "model": str(model_path), "model_kind": sm.kind, "mirror": mirror,
                    **counts, "wall_s": time.perf_counter() - t_start,
                    "outputs": {"csv": str(csv_path), "summary": str(json_path),
@@ -101,6 +105,4 @@ def run(args: argparse.Namespace) -> int:
     print(f"{s['images']} images: {s['fitted']} fitted, {s['rejected']} rejected (low confidence), "
           f"{s['no_face']} without a face found, {s['unreadable']} unreadable -> "
           + ", ".join(display_name(v) for v in s["outputs"].values()))
-    if s["fitted"] == 0:
-        print(f"aamtrack fit: warning: no face fitted in {display_name(args.input)}", file=sys.stderr)
     return 0

@@ -236,6 +236,11 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
             video_path = outputs.written(ov_tmp, ov.path)  # another suffix if the writer fell back
     if counts["read"] == 0:
         raise InputError(f"{input_}: no frames")
+    if counts["tracked"] + counts["detected"] == 0:  # bad input too: one line, nothing written
+        if counts["unreadable"] + counts["dropped"] == counts["read"]:
+            raise InputError(f"{input_}: none of its {counts['read']} frames could be searched "
+                             f"({counts['unreadable']} unreadable, {counts['dropped']} dropped)")
+        raise InputError(f"{input_}: no face found in any of its {counts['read']} frames")
     wall = time.perf_counter() - t_start
 
     track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]
@@ -322,8 +327,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"{s['frames_read']} frames: {s['frames_tracked']} tracked, {s['frames_lost']} lost, "
           f"{s['frames_dropped']} dropped, {s['frames_unreadable']} unreadable, {s['re_detections']} re-detections; "
           f"{s['fps_end_to_end']:.0f} fps end to end -> {', '.join(_outputs(s['outputs']))}")
-    if s["frames_tracked"] == 0:
-        print(f"aamtrack run: warning: no face found in any frame of {display_name(input_)}", file=sys.stderr)
     return 0
 
 

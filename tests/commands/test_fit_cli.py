@@ -52,6 +52,20 @@ def test_fit_bad_input_is_one_line(tmp_path, model_file, capsys, make, needle):
     assert not out.exists()
 
 
+def test_fit_without_any_face_is_one_line_and_nothing_written(tmp_path, model_file, capsys):
+    folder = tmp_path / "walls"
+    folder.mkdir()
+    for k in range(2):
+        cv2.imwrite(str(folder / f"wall{k}.png"), np.full((160, 160), 100 + 40 * k, np.uint8))
+    out = tmp_path / "out"
+    assert main(["fit", str(folder), "--model", str(model_file), "--out-dir", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aamtrack fit: error:"), err  # bad input: one line, exit 1
+    assert err[0].endswith("walls: no face fitted in any of its 2 images (0 rejected, 2 without a face found, "
+                           "0 unreadable)"), err
+    assert not out.exists()  # nothing written
+
+
 def test_fit_refuses_a_video(tmp_path, model_file, capsys):
     frames, _ = synth.moving_face_frames(3)
     video = tmp_path / "clip.avi"

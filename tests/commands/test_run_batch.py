@@ -89,6 +89,26 @@ def test_rerun_skips_finished_inputs_unless_overwrite_or_other_options(tmp_path,
     assert [rows_by_name(out)[f"clip{k}.avi"]["status"] for k in range(3)] == ["done"] * 3
 
 
+def test_a_member_without_a_face_fails_and_again_on_a_rerun(tmp_path, model_file, capsys):
+    import numpy as np
+
+    folder = tmp_path / "videos"
+    folder.mkdir()
+    frames, _ = synth.moving_face_frames(4)
+    synth.write_video(folder / "face.avi", frames)
+    synth.write_video(folder / "wall.avi", [np.full((120, 160, 3), 90, np.uint8) for _ in range(4)])
+    out = tmp_path / "out"
+    for attempt in ("first", "re-run"):
+        assert run(folder, "--model", model_file, "--out-dir", out, "--jobs", 1) == 1, attempt
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), (attempt, err)
+        assert err[0].endswith("wall.avi: no face found in any of its 4 frames"), err
+        rows = rows_by_name(out)
+        assert rows["wall.avi"]["status"] == "failed" and "no face found" in rows["wall.avi"]["error"]
+        assert rows["face.avi"]["status"] == ("done" if attempt == "first" else "skipped")
+        assert not (out / "wall").exists()  # nothing written for it
+
+
 FORK_WHILE_BUSY = """
 import sys, threading
 from pathlib import Path

@@ -61,14 +61,15 @@ def test_default_output_folder_is_next_to_the_input(tmp_path, video, model_file)
 
 
 def test_video_without_a_face(tmp_path, model_file, capsys):
+    """A video in which no face is found is bad input: one line, exit 1, nothing written."""
     frames = [np.full((120, 160, 3), 90, np.uint8) for _ in range(6)]
     synth.write_video(tmp_path / "empty_room.avi", frames)
     out = tmp_path / "out"
-    assert main(["run", str(tmp_path / "empty_room.avi"), "--model", str(model_file), "--out-dir", str(out)]) == 0
-    cols = read_tracking_csv(out / "empty_room.csv")
-    assert len(cols["frame"]) == 6 and (cols["success"] == 0).all()
-    assert np.isnan(cols["x_0"]).all()
-    assert "no face found" in capsys.readouterr().err
+    assert main(["run", str(tmp_path / "empty_room.avi"), "--model", str(model_file), "--out-dir", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), err
+    assert err[0].endswith("empty_room.avi: no face found in any of its 6 frames"), err
+    assert not out.exists()
 
 
 def test_realtime_drops_frames_of_a_fast_source(tmp_path, model_file):

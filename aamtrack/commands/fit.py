@@ -86,9 +86,9 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
                 else:
                     counts["no_face"] += 1
         if counts["fitted"] == 0:  # bad input: one line, nothing written
-            raise InputError(f"{display_name(input_)}: no face fitted in any of its {counts['images']} images "
-                             f"({counts['rejected']} rejected, {counts['no_face']} without a face found, "
-                             f"{counts['unreadable']} unreadable)")
+            which = f"any of its {counts['images']} images" if counts["images"] > 1 else "it"
+            raise InputError(f"{display_name(input_)}: no face fitted in {which} ({counts['rejected']} rejected, "
+                             f"{counts['no_face']} without a face found, {counts['unreadable']} unreadable)")
         summary = {"input": display_name(input_), "model": str(model_path), "model_kind": sm.kind, "mirror": mirror,
                    **counts, "wall_s": time.perf_counter() - t_start,
                    "outputs": {"csv": str(csv_path), "summary": str(json_path),

@@ -240,7 +240,8 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
         if counts["unreadable"] + counts["dropped"] == counts["read"]:
             raise InputError(f"{input_}: none of its {counts['read']} frames could be searched "
                              f"({counts['unreadable']} unreadable, {counts['dropped']} dropped)")
-        raise InputError(f"{input_}: no face found in any of its {counts['read']} frames")
+        raise InputError(f"{input_}: no face found in any of its {counts['read']} frames" if counts["read"] > 1
+                         else f"{input_}: no face found in its one frame")
     wall = time.perf_counter() - t_start
 
     track_times = [a + b for a, b in zip(per_frame["pyramid"], per_frame["search"], strict=False)]

@@ -258,6 +258,17 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.dlib_worker:
         return dlib_worker(*a.dlib_worker, tuned=a.dlib_tuned)
+    if not a.no_long and not a.no_dlib:  # before any timing: the dlib runs use this same interpreter
+        from peer_runners import PeerUnavailable, _dlib
+
+        try:
+            _dlib()
+        except PeerUnavailable as exc:
+            why = str(exc).removeprefix("skipped: ")
+            print(f"throughput.py: error: dlib for the comparison: {why}. Run this script with the peers' venv "
+                  "(benchmarks/README.md: PYTHONPATH=. .venv-peers/bin/python benchmarks/throughput.py ...), "
+                  "or pass --no-dlib", file=sys.stderr)
+            return 1
     a.work = a.work.resolve()  # absolute: the older checkout runs from its own folder
     a.before = a.before.resolve() if a.before else None
     long_video, folder = make_data(a.work, a.video, a.loops)

@@ -72,12 +72,14 @@ def non_face_images(shape: tuple, rng: np.random.Generator) -> list[np.ndarray]:
 DEGRADATIONS = ("blur", "noise", "dark", "low_contrast")
 
 
-def blurred_copy(gray: np.ndarray, eye_px: float, eye_range: tuple, rng: np.random.Generator) -> np.ndarray:
+def blurred_copy(gray: np.ndarray, eye_px: float, eye_range: tuple, rng: np.random.Generator, *,
+                 scale: float = 1.0) -> np.ndarray:
     """A Gaussian blur of a grey image, sigma drawn uniformly in ``eye_range`` outer eye-corner distances
-    (``eye_px`` pixels), at least 0.3 px: how training makes every blurred copy (one draw of ``rng``)."""
+    (``eye_px`` pixels, times ``scale`` for an image resized by it), at least 0.3 px: how training makes every
+    blurred copy (one draw of ``rng``)."""
     import cv2
 
-    return cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(*eye_range) * eye_px))
+    return cv2.GaussianBlur(gray, (0, 0), max(0.3, rng.uniform(*eye_range) * eye_px * scale))
 
 
 def degraded(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
@@ -111,7 +113,7 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
             h, w = gray.shape
             small = cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
             if rng.random() < 0.5:
-                small = cv2.GaussianBlur(small, (0, 0), max(0.3, rng.uniform(0.02, 0.07) * eye_px * f))
+                small = blurred_copy(small, eye_px, (0.02, 0.07), rng, scale=f)
             out = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
         else:
             out = blurred_copy(gray, eye_px, (0.02, 0.07), rng)

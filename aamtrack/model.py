@@ -31,13 +31,14 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade, sharpness, signal
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 9  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 10  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
 # 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
 # landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``); 8: a second landmark
 # validator for dim, noisy faces (``dim_validator/*``, ``Model.dim_validator``); 9: a second set of couples for soft
 # faces (``soft_couple*/*``, ``Model.soft_couples``) and (optional) a landmark validator for soft faces
-# (``soft_validator/*``, ``Model.soft_validator``)
+# (``soft_validator/*``, ``Model.soft_validator``); 10: the landmark cascade's last stage ``repeats`` (it runs that
+# many more times: older files would read as none, and their validators were learned without)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -154,6 +155,12 @@ class Model:
             return self.soft_couples
         return self.couples
 
+    def dim(self, image: np.ndarray, scale: float, pts: np.ndarray) -> bool:
+        """Whether the face at pts (68, 2) (frame pixels) in ``image`` (the grey frame resampled by ``scale``) is
+        dim and noisy: its contrast over the image's noise (``signal_to_noise``) below ``dim_below``, for a model
+        with a validator for such faces (``validator_for``)."""
+        return self.dim_validator is not None and signal_to_noise(image, scale, pts) < self.dim_below
+
     def validator_for(self, image: np.ndarray, scale: float, pts: np.ndarray, *,
                       soft: bool = False) -> Validator | None:
         """The landmark validator for the fit at pts (68, 2) (frame pixels, after the landmark cascade) in
@@ -164,7 +171,7 @@ class Model:
         ``landmark_validator``. One validator for both kinds of face either refused good fits of small faces in a
         dim room (learned on each degradation alone) or, learned on them too, accepted more bad fits of clear
         faces (benchmarks/README.md, robustness)."""
-        if self.dim_validator is not None and signal_to_noise(image, scale, pts) < self.dim_below:
+        if self.dim(image, scale, pts):
             return self.dim_validator
         if soft and self.soft_validator is not None:
             return self.soft_validator
@@ -235,7 +242,7 @@ def save_model(model: Model, path: str | Path) -> None:
         "validator": {"names": list(v.names), "bias": v.bias},
         "landmark_cascade": None if lc is None else {"halves": list(lc.halves), "cells": lc.spec.cells,
                                                      "cell": lc.spec.cell, "bins": lc.spec.bins,
-                                                     "floor": lc.spec.floor},
+                                                     "floor": lc.spec.floor, "repeats": lc.repeats},
         "landmark_validator": None if lv is None else {"names": list(lv.names), "bias": lv.bias},
         "soft_landmarks": None if sc is None else {"above": model.soft_above},
         "dim_validator": None if dv is None else {"names": list(dv.names), "bias": dv.bias,
@@ -513,10 +520,11 @@ def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
     try:
         halves = tuple(float(h) for h in spec["halves"])
         ds = DescriptorSpec(int(spec["cells"]), int(spec["cell"]), int(spec["bins"]), float(spec["floor"]))
+        repeats = spec["repeats"]
     except (KeyError, TypeError, ValueError):
         c.fail("unreadable landmark cascade settings")
     if not (all(0 < h <= 2 for h in halves) and 1 <= ds.cells <= 16 and 1 <= ds.cell <= 32 and 2 <= ds.bins <= 64
-            and 0 <= ds.floor <= 1e3):
+            and 0 <= ds.floor <= 1e3 and type(repeats) is int and 0 <= repeats <= 8):
         c.fail("landmark cascade settings out of range")
     K = len(halves)
     basis = c.array("landmarks/basis", np.float32, (K, ds.size, None))
@@ -527,7 +535,8 @@ def _landmark_cascade(c: _Checker, spec: dict | None) -> LandmarkCascade | None:
                            c.array("landmarks/basis_mean", np.float32, (K, ds.size)), basis,
                            c.array("landmarks/regressors", np.float32, (K, 2 * N_LANDMARKS, N_LANDMARKS * d)),
                            c.array("landmarks/biases", np.float64, (K, 2 * N_LANDMARKS)),
-                           c.array("landmarks/shape_regressors", np.float32, (K, 2 * N_LANDMARKS, 2 * N_LANDMARKS)))
+                           c.array("landmarks/shape_regressors", np.float32, (K, 2 * N_LANDMARKS, 2 * N_LANDMARKS)),
+                           repeats)
 
 
 def _soft_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None) -> tuple:

@@ -31,6 +31,7 @@ def test_round_trip(tmp_path, synth_model):
     assert m.soft_above == synth_model.soft_above and np.array_equal(sc.regressors, sc0.regressors)
     assert np.array_equal(sc.biases, sc0.biases) and np.array_equal(sc.shape_regressors, sc0.shape_regressors)
     assert sc.basis is m.landmark_cascade.basis and sc.ref is m.landmark_cascade.ref  # stored once, shared
+    assert synth_model.landmark_cascade.repeats == 2 and m.landmark_cascade.repeats == sc.repeats == 2
     assert len(synth_model.soft_couples) == len(synth_model.couples)  # the synthetic model has soft couples too
     for a, b in zip(m.soft_couples, synth_model.soft_couples, strict=True):
         assert a.face_px == b.face_px and np.array_equal(a.free, b.free)
@@ -170,6 +171,9 @@ def _damaged(synth_model):
     """(name, arrays to replace, metadata changes, message) of malformed models that must not load."""
     c0 = synth_model.couples[0]
     t0 = synth_model.textures[0]
+    lc = synth_model.landmark_cascade
+    lc_meta = {"halves": list(lc.halves), "cells": lc.spec.cells, "cell": lc.spec.cell, "bins": lc.spec.bins,
+               "floor": lc.spec.floor}
     return [
         ("negative free", {"couple0/free": -c0.free - 1}, {}, "indices outside"),
         ("free beyond p", {"couple0/free": c0.free + 100}, {}, "indices outside"),
@@ -190,6 +194,9 @@ def _damaged(synth_model):
         ("missing array", {"couple0/cascade_bias": None}, {}, "missing"),
         ("descriptor weights length", {"landmark_validator/descriptor_weights":
                                        synth_model.landmark_validator.descriptor_weights[:-1]}, {}, "has shape"),
+        ("landmark cascade without repeats", {}, {"landmark_cascade": lc_meta}, "unreadable landmark cascade"),
+        ("negative repeats", {}, {"landmark_cascade": {**lc_meta, "repeats": -1}}, "landmark cascade settings out"),
+        ("fractional repeats", {}, {"landmark_cascade": {**lc_meta, "repeats": 1.5}}, "landmark cascade settings out"),
         ("landmark validator without cascade", {}, {"landmark_cascade": None}, "without a landmark cascade"),
         ("unreadable landmark validator", {}, {"landmark_validator": {"names": 3}}, "unreadable landmark_validator"),
         ("soft cascade threshold", {}, {"soft_landmarks": {"above": 2.0}}, "outside 0..1"),

@@ -201,8 +201,8 @@ def _squared_norm(ref):
 
 
 @numba.njit(**NJIT)
-def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, S, shape_from, cells, cell, bins,
-                      floor, feat, shape, prior):
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, S, shape_from, repeats, cells,
+                      cell, bins, floor, feat, shape, prior):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
@@ -210,14 +210,17 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
     (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point, where the
     stages from ``shape_from`` on read the points' own shape in the reference frame (s = (pts - centroid) M^-1 -
     ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2) float64 <- the sum of the (S[k] s) @ M
-    moves. Returns the last stage's z (what the landmark validator weighs: the face around each point just before
-    the last, smallest update)."""
+    moves. The last stage runs ``repeats`` more times, each on the points as the one before left them. Returns the
+    last stage's z (what the landmark validator weighs: the face around each point just before the last, smallest
+    update)."""
     L = pts.shape[0]
     side = cells * cell
     n2 = _squared_norm(ref)
     z = np.zeros((L, basis.shape[2]), np.float32)
     prior[:] = 0.0
-    for k in range(halves.shape[0]):
+    n = halves.shape[0]
+    for it in range(n + repeats if n > 0 else 0):
+        k = min(it, n - 1)
         a, c, mx, my = _similarity(pts, ref, n2)
         step = 2.0 * halves[k] / (side + 1)
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,

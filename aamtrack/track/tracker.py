@@ -214,11 +214,13 @@ class Tracker:
         return self.searcher.levels(to_gray32(image[y0:y1, x0:x1])), np.array([x0, y0], float)  # grey of the crop
 
     def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0, crop=None,
-                landmarks: bool = True, last: int = 0, soft: bool | None = None) -> tuple[FitResult, float]:
+                landmarks: bool = True, last: int = 0, soft: bool | None = None,
+                dim: bool | None = None) -> tuple[FitResult, float]:
         """Search from each start (n_params,) on one crop of the frame around them all (exact: the model is
         translation-equivariant), keep the most confident fit and run the landmark cascade on it (unless
-        ``landmarks`` is False; its ``last`` stages only when given, ``Searcher.refine_landmarks``);
-        ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples (``Searcher.fit``).
+        ``landmarks`` is False; its ``last`` stages only when given, ``Searcher.refine_landmarks``, as for a dim
+        face if ``dim``); ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples
+        (``Searcher.fit``).
         Returns (result in frame coordinates, seconds spent on the crop's feature images)."""
         t0 = time.perf_counter()
         levels, off = self.crop(image, starts) if crop is None else crop
@@ -239,7 +241,7 @@ class Tracker:
                 best = res
         if landmarks:
             best = self.searcher.refine_landmarks(levels, best, factors[-1] if len(crop_starts) == 1 else None,
-                                                  last=last)
+                                                  last=last, dim=dim)
         p = best.p.copy()
         p[4:6] += off
         return replace(best, p=p, landmarks=best.landmarks + off, vertices=best.vertices + off), t_pyr
@@ -331,23 +333,27 @@ class Tracker:
         return res, timings
 
     def search_from(self, image: np.ndarray, start: np.ndarray, shape_params=None, *,
-                    last: int | None = None, soft: bool | None = None) -> tuple[FitResult, float]:
+                    last: int | None = None, soft: bool | None = None,
+                    dim: bool | None = None) -> tuple[FitResult, float]:
         """A tracked frame's search: from ``start`` (the search vector ``tracked_start`` made) with the coarsest
         ``skip_tracked`` couples skipped, searched again with the coarser couple too when its confidence is below
         ``coarser_below`` (the more confident fit kept), then the landmark cascade's last ``last`` stages
         (``landmark_stages_tracked`` by default); with the soft couples if ``soft`` (the fit it starts from was a
-        soft face's, ``FitResult.soft``). Returns (fit, seconds spent on the crop and its levels)."""
+        soft face's, ``FitResult.soft``), the landmark cascade as for a dim face if ``dim`` (the fit it starts from
+        was a dim face's, ``FitResult.dim``; None: as the face looks). Returns (fit, seconds spent on the crop and
+        its levels)."""
         cfg = self.config
         last = cfg.landmark_stages_tracked if last is None else last
         t0 = time.perf_counter()
         crop = self.crop(image, [start])
         t_pyr = time.perf_counter() - t0
-        res, t = self.fit_roi(image, [start], shape_params, first=self.skip_tracked, crop=crop, last=last, soft=soft)
+        res, t = self.fit_roi(image, [start], shape_params, first=self.skip_tracked, crop=crop, last=last, soft=soft,
+                              dim=dim)
         t_pyr += t
         if (res.confidence < cfg.coarser_below or res.dim) and self.skip_tracked > cfg.skip_coarse:
             # the same start on the same crop and levels, with the coarser couple too
             alt, t = self.fit_roi(image, [start], shape_params, first=cfg.skip_coarse, crop=crop, last=last,
-                                  soft=soft)
+                                  soft=soft, dim=dim)
             t_pyr += t
             if alt.confidence > res.confidence or (res.dim and alt.confidence >= res.confidence):
                 res = alt
@@ -561,7 +567,7 @@ class Tracker:
         its levels)."""
         if not self.config.landmark_pass or res.confidence < self.config.min_confidence:
             return res, 0.0
-        alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0, soft=res.soft)
+        alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0, soft=res.soft, dim=res.dim)
         return (alt if alt.confidence >= res.confidence else res), t
 
     # -- a video ---------------------------------------------------------------------------------------
@@ -571,6 +577,7 @@ class Tracker:
         p = None          # current search vector, None when there is no track
         p_prev = None     # previous frame's (motion prediction)
         soft = False      # whether the current track's last fit was a soft face's (its next search's couples)
+        dim = False       # ... a dim face's (its next landmark cascade without the repeats)
         shape_params = None  # the person's held shape units (3D), once estimated
         sigma_samples = []
         estimate = self.model.shape.n_shape > 0 and cfg.sigma_frames > 0
@@ -610,7 +617,7 @@ class Tracker:
                     step = cfg.predict_damping * (p - p_prev)
                     start[[2, 4, 5]] += step[[2, 4, 5]]
                 t1 = time.perf_counter()
-                res, t_pyr = self.search_from(image, start, shape_params, soft=soft)
+                res, t_pyr = self.search_from(image, start, shape_params, soft=soft, dim=dim)
                 timings["pyramid"] = t_pyr
                 timings["search"] = time.perf_counter() - t1 - t_pyr
             n_fitted += 1
@@ -624,7 +631,7 @@ class Tracker:
                     if len(sigma_samples) >= cfg.sigma_frames:
                         shape_params = np.median(sigma_samples, axis=0)
                 p_prev = p if status == "tracked" else None
-                p, soft = self.tracked_start(res), res.soft
+                p, soft, dim = self.tracked_start(res), res.soft, res.dim
                 misses = 0
                 yield self._result(frame, status, res, timings)
             else:

@@ -69,15 +69,17 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
                            halves: tuple = (0.35, 0.22, 0.14, 0.1), n_starts: int = 16,
                            error_scale: tuple = (0.5, 1.5), n_components: int = 48,
                            alphas: tuple = (0.3, 1.0, 3.0, 10.0, 30.0), shape_stages: int = 1,
-                           shape_weight: float = 3.0, rng: np.random.Generator, like: LandmarkCascade | None = None,
-                           progress=None) -> tuple[LandmarkCascade, list]:
+                           shape_weight: float = 3.0, repeats: int = 0, rng: np.random.Generator,
+                           like: LandmarkCascade | None = None, progress=None) -> tuple[LandmarkCascade, list]:
     """Learn the cascade from training images (grey, each resampled by ``scales[i]``), their labels truth
     (n, 68, 2) (frame pixels), the AAM's final fits (M, 68, 2) of image ``fit_owner[m]``, and each image's group
     (an image and its mirror: one side of a hold-out). Each stage projects a point's descriptor on its
     ``n_components`` principal components (over all points and starts) before the regression; the last
     ``shape_stages`` also read the points' shape (module docstring); with ``like`` (a cascade of the same
     halves), its reference shape, descriptor means and components instead (so that a cascade's last-stage
-    descriptors, which the landmark validator weighs, mean the same in both). Returns (cascade, per-stage record)."""
+    descriptors, which the landmark validator weighs, mean the same in both). ``repeats``: how many more times the
+    cascade's last stage runs when applied (``LandmarkCascade.repeats``; the stages are learned as without).
+    Returns (cascade, per-stage record)."""
     progress = progress or (lambda it, **_: it)
     if like is not None and tuple(float(h) for h in halves) != like.halves:
         raise ValueError(f"halves {tuple(halves)} differ from the cascade whose descriptors they share {like.halves}")
@@ -151,4 +153,4 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         log.info("landmark stage %d: ridge %g, training starts' NME median %.4f mean %.4f", k, alpha,
                  float(np.median(e)), float(e.mean()))
     return LandmarkCascade(ref, spec, tuple(float(h) for h in halves), np.stack(means), np.stack(bases),
-                           np.stack(Rs), np.stack(bs), np.stack(Ss)), record
+                           np.stack(Rs), np.stack(bs), np.stack(Ss), repeats), record

@@ -113,6 +113,8 @@ class TrainConfig:
     before, both without ``TrackerConfig.landmark_pass``), same cost.
     landmark_shape_stages, landmark_shape_weight: the last this many stages of the landmark cascade also regress
     on the points' own shape, at this weight against the descriptors (``train.landmarks``; 0 stages: none).
+    landmark_repeats: the landmark cascade's last stage runs this many more times when applied
+    (``LandmarkCascade.repeats``, where the measurement is).
     landmark_blur_share: the landmark cascade also learns from Gaussian-blurred copies of this share of the
     (mirrored) training images (sigma drawn in ``landmark_blur_eye`` outer eye-corner distances), with their sharp
     images' labels, each starting from the search's own fit of the blurred copy from its Haar box (farther off
@@ -179,6 +181,7 @@ class TrainConfig:
     landmark_pca: int = 48
     landmark_shape_stages: int = 1
     landmark_shape_weight: float = 3.0
+    landmark_repeats: int = 2
     landmark_blur_share: float = 0.0
     landmark_blur_eye: tuple = (0.02, 0.08)
     soft_share: float = 1.0
@@ -573,7 +576,9 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         res = searcher.fit(levels, p0, landmarks=False)
         img = levels.resampled(r)
         cascade = model.cascade_for(img, r, res.landmarks) if dim_below > 0 or soft else lc
-        pts, z, _ = cascade.run(img, r, res.landmarks)  # as ``refine_landmarks`` runs it
+        # as ``refine_landmarks`` runs it: a face dim at its start without the last stage's repeats
+        dim = dim_below > 0 and signal_to_noise(img, r, res.landmarks) < dim_below
+        pts, z, _ = cascade.run(img, r, res.landmarks, 0, 0 if dim else None)
         if dim_below > 0 and truth is not None and signal_to_noise(img, r, pts) >= 2 * dim_below:
             return
         if soft and truth is not None and cascade is lc:
@@ -753,7 +758,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         lmk_truth, lmk_groups = pts[:n_sharp], owner_group[:n_sharp]
         lmk_kw = dict(halves=tuple(config.landmark_halves), n_starts=config.landmark_starts,
                       n_components=config.landmark_pca, shape_stages=config.landmark_shape_stages,
-                      shape_weight=config.landmark_shape_weight, progress=progress)
+                      shape_weight=config.landmark_shape_weight, repeats=config.landmark_repeats,
+                      progress=progress)
         searching = replace(model, validator=validator)
         if config.landmark_blur_share > 0:  # blurred copies: the sharp image's truth and group, their own fits
             b_images, b_scales, b_of, b_fits, b_owner = _blurred_copies(

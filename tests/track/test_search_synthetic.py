@@ -61,3 +61,31 @@ def test_soft_couples_search_blurred_faces_better(synth_model):
         err_sharp.append(np.linalg.norm(sharp.fit(levels, q0, landmarks=False).landmarks - pts, axis=1).mean())
     print(f"blurred faces, mean px error: sharp couples {np.mean(err_sharp):.2f}, soft couples {np.mean(err_soft):.2f}")
     assert np.mean(err_soft) < np.mean(err_sharp)
+
+
+def test_dim_faces_leave_out_the_cascade_repeats(synth_model):
+    """``Searcher.refine_landmarks``: the landmark cascade's last stage runs its ``repeats`` more times on a clear
+    face, not on one dim and noisy at the search's points (``Model.dim``: the threshold moved about the face's own
+    signal-to-noise)."""
+    from dataclasses import replace
+
+    from aamtrack.landmark_cascade import signal_to_noise
+
+    rng = np.random.default_rng(SEED + 3)
+    images, points = synth.random_faces(1, rng, size=(220, 220), scale=130.0)
+    base = Searcher(synth_model)
+    levels = base.levels(to_gray32(images[0]))
+    q0 = fit_landmarks(synth_model.shape, points[0] - PIXEL_ORIGIN).q
+    res = base.fit(levels, q0, landmarks=False)
+    r = base.factors(res.p)[-1]
+    img = levels.resampled(r)
+    s = signal_to_noise(img, r, res.landmarks)
+    lc = synth_model.landmark_cascade
+    assert lc.repeats == 2 and lc is synth_model.cascade_for(img, r, res.landmarks)  # a sharp face: the main one
+    with_repeats = lc.run(img, r, res.landmarks, 0, 2)[0]
+    without = lc.run(img, r, res.landmarks, 0, 0)[0]
+    assert np.abs(with_repeats - without).max() > 1e-3  # px: the repeats do move the points
+    for below, expected in ((s - 0.01, with_repeats), (s + 0.01, without)):
+        model = replace(synth_model, dim_below=below)
+        out = Searcher(model).refine_landmarks(levels, res, r)
+        assert out.dim == (below > s) and np.array_equal(out.landmarks, expected)

@@ -1,6 +1,8 @@
 """The landmark cascade (supervised descent on local descriptors): its face frame, and learning it on synthetic
 faces with known landmarks recovers known displacements."""
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -57,12 +59,22 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
     after = nme(np.array([cascade.apply(g, 1.0, s) for g, s in zip(gray[test], starts)]), truth[test])
     assert before.mean() > 0.08  # the starts really are off
     assert after.mean() < 0.45 * before.mean()  # and the cascade takes them more than half the way
+    repeated = replace(cascade, repeats=2)
+    last = replace(cascade, repeats=0)
     for g, s in zip(gray[test], starts):  # compiled against numpy steps, points and the validator's features
-        (x, z, prior), (x_slow, z_slow, prior_slow) = cascade.run(g, 1.0, s), cascade.run_slow(g, 1.0, s)
-        assert np.abs(x - x_slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
-        assert np.abs(prior - prior_slow).max() < 1e-3 and np.abs(prior).max() > 1e-3  # px, and it moved them
-        assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
-        assert np.array_equal(cascade.apply(g, 1.0, s), x)
+        for c in (cascade, repeated):
+            (x, z, prior), (x_slow, z_slow, prior_slow) = c.run(g, 1.0, s), c.run_slow(g, 1.0, s)
+            assert np.abs(x - x_slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
+            assert np.abs(prior - prior_slow).max() < 1e-3 and np.abs(prior).max() > 1e-3  # px, and it moved them
+            assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
+            assert np.array_equal(c.apply(g, 1.0, s), x)
+        # repeats: the last stage run again on the points it left, twice; z is the last pass's
+        x2, z2, _ = repeated.run(g, 1.0, s)
+        y = cascade.apply(g, 1.0, s)
+        for _ in range(2):
+            y, z_last, _ = last.run(g, 1.0, y, first=last.n_stages - 1)
+        assert np.abs(x2 - y).max() < 1e-9 and np.array_equal(z2, z_last)
+        assert np.abs(x2 - cascade.apply(g, 1.0, s)).max() > 1e-3  # and the repeats did move the points
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():

@@ -631,8 +631,8 @@ def test_the_landmark_pass_keeps_the_more_confident_fit(synth_model, pass_conf, 
     calls, passed = [], []
 
     class Marked(Tracker):
-        def search_from(self, image, start, shape_params=None, *, last=None, soft=None):
-            res, t = super().search_from(image, start, shape_params, last=last, soft=soft)
+        def search_from(self, image, start, shape_params=None, *, last=None, **kw):
+            res, t = super().search_from(image, start, shape_params, last=last, **kw)
             calls.append(last)
             passed.append(dc_replace(res, confidence=pass_conf))
             return passed[-1], t

@@ -26,7 +26,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from .kernels import face_laplacian_and_deviation, face_sharpness, landmark_cascade, landmark_descriptors
+from .kernels import face_noise_and_deviation, face_sharpness, landmark_cascade, landmark_descriptors
 from .mesh.landmarks import similarity_fit
 
 
@@ -111,18 +111,15 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
     (0.5 grey levels + the noise's standard deviation, estimated as the median absolute Laplacian / 0.6745 /
-    sqrt(20), which edges barely move) (``kernels.face_laplacian_and_deviation``, then numpy's median).
+    sqrt(20), which edges barely move) (``kernels.face_noise_and_deviation``, one compiled call).
     helen_test at the 3D model's finest couple (5th-95th percentile): clean 13-44, under the robustness suite's
     other variants at least 4.8 (noise of 25 grey levels 4.8-15), made small and dim (dim_small) 1.7-3.7; cap12,
     whose face is smaller in its frame, under noise of 25 grey levels 1.6-1.9. 0 for a box under 8 pixels a side
     or off the image. What picks the model's validator for dim, noisy faces (``Model.validator_for``)."""
-    lap, sd = face_laplacian_and_deviation(image, scale, pts)
+    med, sd = face_noise_and_deviation(image, scale, pts)
     if sd < 0:
         return 0.0
-    k = lap.size // 2  # the median as np.median takes it, by a partition (np.median: 4x the time) at one index
-    part = np.partition(lap, k)  # (at two, (k - 1, k), it took 8x as long: 230 against 30 us on a 28k-pixel box)
-    med = part[k] if lap.size % 2 else (part[:k].max() + part[k]) / np.float32(2.0)
-    return sd / (float(med) / (0.6745 * math.sqrt(20.0)) + 0.5)
+    return sd / (med / (0.6745 * math.sqrt(20.0)) + 0.5)
 
 
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and what its contrast
-over the image's noise is read from (``_laplacian_and_deviation``; ``landmark_cascade.signal_to_noise`` takes
-the median in numpy), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``).
+over the image's noise is read from (``_laplacian_and_deviation``: the median absolute Laplacian and the
+standard deviation), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``).
 In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms, most of it per-call overhead on
 boxes of a few thousand pixels; here each is one compiled call.
 
@@ -172,16 +172,72 @@ def _sharpness(img, scale, pts, pad, k1, k2):
 
 
 @numba.njit(**NJIT)
+def _middle(v):
+    """np.median of v (n >= 1,) float32 (finite), bit for bit (for even n the two middle values' mean in float32),
+    in a few linear passes: a histogram of 1024 bins between the values' min and max finds the bins of the middle
+    ranks, their values are gathered to the front of v, and again on those until at most 48 are left, which are
+    sorted. (A value's bin is monotonic in the value, so the ranks stay where counted.) v is overwritten.
+    On a face box's 17k absolute Laplacians: 35 us against 110 for numpy's partition (the median this replaced);
+    with most values tied (a flat box) 0.2 against 1.4 ms."""
+    n = v.shape[0]
+    r1 = n // 2
+    r0 = r1 if n % 2 else r1 - 1
+    m = n
+    B = 1024
+    counts = np.empty(B, np.int64)
+    while True:
+        lo = v[0]
+        hi = v[0]
+        for i in range(1, m):
+            lo = min(lo, v[i])
+            hi = max(hi, v[i])
+        if m <= 48 or not hi > lo:
+            s = np.sort(v[:m])
+            a = s[r0]
+            b = s[r1]
+            break
+        flo = float(lo)
+        c = (B - 1) / (float(hi) - flo)
+        counts[:] = 0
+        for i in range(m):
+            counts[min(int((float(v[i]) - flo) * c), B - 1)] += 1
+        cum = 0
+        b0 = -1
+        b1 = B - 1
+        before = 0
+        for j in range(B):
+            if b0 < 0 and cum + counts[j] > r0:
+                b0 = j
+                before = cum
+            if cum + counts[j] > r1:
+                b1 = j
+                break
+            cum += counts[j]
+        k = 0
+        for i in range(m):
+            x = v[i]
+            j = min(int((float(x) - flo) * c), B - 1)
+            if b0 <= j <= b1:
+                v[k] = x
+                k += 1
+        m = k
+        r0 -= before
+        r1 -= before
+    if n % 2:
+        return a
+    return (a + b) / np.float32(2.0)
+
+
+@numba.njit(**NJIT)
 def _laplacian_and_deviation(img, scale, pts):
-    """What ``landmark_cascade.signal_to_noise`` reads of the face's box (no pad): (|4-neighbour Laplacian| of
-    the box's inner pixels (n,) float32, formed as numpy forms 4 c - up - down - left - right; the box's standard
-    deviation, float64 from the sums of values and squares, as OpenCV's ``meanStdDev``). An empty array and -1
-    for a box under 8 pixels a side or off the image. (The median is left to numpy: its partition is about 10x
-    as fast as numba's ``np.partition`` or a plain quickselect here.)"""
+    """What ``landmark_cascade.signal_to_noise`` reads of the face's box (no pad): (the median of the |4-neighbour
+    Laplacian| of the box's inner pixels, float32, each formed as numpy forms 4 c - up - down - left - right, the
+    median as np.median takes it (``_middle``); the box's standard deviation, float64 from the sums of values and
+    squares, as OpenCV's ``meanStdDev``). (0, -1) for a box under 8 pixels a side or off the image."""
     H, W = img.shape
     box = np.empty(4, np.int64)
     if not _face_box(H, W, scale, pts, 0, 8, box):
-        return np.empty(0, np.float32), -1.0
+        return np.float32(0.0), -1.0
     x0, y0, x1, y1 = box[0], box[1], box[2], box[3]
     h = y1 - y0
     w = x1 - x0
@@ -211,4 +267,4 @@ def _laplacian_and_deviation(img, scale, pts):
     cnt = h * w
     mean = s.sum() / cnt
     ss = ss.sum()
-    return lap, math.sqrt(max(ss / cnt - mean * mean, 0.0))
+    return _middle(lap), math.sqrt(max(ss / cnt - mean * mean, 0.0))

@@ -5,6 +5,7 @@ import math
 
 import cv2
 import numpy as np
+import pytest
 
 from aamtrack.landmark_cascade import SHARPNESS_SIGMAS, sharpness, signal_to_noise
 
@@ -99,3 +100,17 @@ def test_face_stats_off_the_image_or_not_finite_give_zero():
     for bad in (pts + 1000.0, np.where(np.arange(68)[:, None] == 3, np.nan, pts)):
         assert sharpness(img, 1.0, bad) == 0.0
         assert signal_to_noise(img, 1.0, bad) == 0.0
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 47, 48, 49, 1000, 17028, 17029])
+def test_median_kernel_is_numpys_median(n):
+    from aamtrack._kernels.face_stats import _middle
+
+    rng = np.random.default_rng(SEED + n)
+    cases = [rng.random(n), np.abs(rng.normal(0, 3, n)), np.round(rng.normal(0, 3, n) * 4) / 4,  # ties
+             rng.standard_cauchy(n),  # a few values far out: the middle ranks share a bin with many others
+             np.where(rng.random(n) < 0.7, 0.0, rng.random(n)),  # most values tied at 0
+             np.full(n, 2.5), np.arange(n)[::-1] * 1e-3]
+    for v in cases:
+        v = v.astype(np.float32)
+        assert _middle(v.copy()) == np.median(v)  # exact: the same float32 values and mean

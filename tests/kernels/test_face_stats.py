@@ -107,8 +107,8 @@ def test_median_kernel_is_numpys_median(n):
     from aamtrack._kernels.face_stats import _middle
 
     rng = np.random.default_rng(SEED + n)
-    cases = [rng.random(n), np.abs(rng.normal(0, 3, n)), np.round(rng.normal(0, 3, n) * 4) / 4,  # ties
-             rng.standard_cauchy(n),  # a few values far out: the middle ranks share a bin with many others
+    cases = [rng.random(n), np.abs(rng.normal(0, 3, n)), np.abs(np.round(rng.normal(0, 3, n) * 4) / 4),  # ties
+             np.abs(rng.standard_cauchy(n)),  # a few values far out: the middle ranks share a bin with many others
              np.where(rng.random(n) < 0.7, 0.0, rng.random(n)),  # most values tied at 0
              np.full(n, 2.5), np.arange(n)[::-1] * 1e-3]
     for v in cases:

@@ -18,7 +18,7 @@ from ._kernels import landmark_fit as _lf
 from ._kernels import patches as _p
 from ._kernels import warp as _k
 
-F32, F64, I32, I64 = np.float32, np.float64, np.int32, np.int64
+F32, F64, I16, I32, I64 = np.float32, np.float64, np.int16, np.int32, np.int64
 
 
 def _in(a, dtype, ndim: int, name: str) -> np.ndarray:
@@ -146,18 +146,20 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
     return out
 
 
-def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, regressors, biases,
-                     shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float, feat,
-                     shape, prior, repeats: int = 0) -> np.ndarray:
+def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, quantised, scales,
+                     biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float,
+                     feat, shape, prior, repeats: int = 0) -> np.ndarray:
     """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
     float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``, the last stage
-    ``repeats`` more times; the stages from ``shape_from`` on read the points' shape; feat (L, cells * cells *
-    bins) and shape (2 L,) float32 scratch;
+    ``repeats`` more times; the stages' regressors as ``landmark_cascade.quantise_rows`` gives them (quantised
+    (K, 68 d, 2 L) int16, scales (K, 2 L) float32); the stages from ``shape_from`` on read the points' shape; feat
+    (L, cells * cells * bins) and shape (2 L,) float32 scratch;
     prior (L, 2) float64 <- the shape term's part of the move. Returns (L, d) float32: the last stage's projected
     descriptors."""
     return _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
                          _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
-                         _in(basis, F32, 3, "basis"), _in(regressors, F32, 3, "regressors"),
+                         _in(basis, F32, 3, "basis"), _in(quantised, I16, 3, "quantised"),
+                         _in(scales, F32, 2, "scales"),
                          _in(biases, F64, 2, "biases"), _in(shape_regressors, F32, 3, "shape_regressors"),
                          int(shape_from), int(repeats), int(cells), int(cell), int(bins), float(floor),
                          _out(feat, F32, 2, "feat"),

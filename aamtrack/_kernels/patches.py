@@ -201,13 +201,44 @@ def _squared_norm(ref):
 
 
 @numba.njit(**NJIT)
-def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R, b, S, shape_from, repeats, cells,
-                      cell, bins, floor, feat, shape, prior):
+def _qmatvec(Q, s, z, out):
+    """out (m,) float64 <- diag(s) Q^T z, the product of a matrix stored transposed and quantised
+    (``landmark_cascade.quantise_rows``): Q (n, m) int16, s (m,) float32 each output's scale, z (n,) float32.
+    Four rows of Q at a time into float32 sums (each output's terms in the order of n, in fours), the inner loop
+    across the m outputs, so it vectorises without reassociating anything."""
+    n, m = Q.shape
+    acc = np.zeros(m, np.float32)
+    n4 = n - n % 4
+    for j in range(0, n4, 4):
+        z0 = z[j]
+        z1 = z[j + 1]
+        z2 = z[j + 2]
+        z3 = z[j + 3]
+        q0 = Q[j]
+        q1 = Q[j + 1]
+        q2 = Q[j + 2]
+        q3 = Q[j + 3]
+        for i in range(m):
+            acc[i] += (np.float32(q0[i]) * z0 + np.float32(q1[i]) * z1) + (np.float32(q2[i]) * z2
+                                                                           + np.float32(q3[i]) * z3)
+    for j in range(n4, n):
+        zj = z[j]
+        qj = Q[j]
+        for i in range(m):
+            acc[i] += np.float32(qj[i]) * zj
+    for i in range(m):
+        out[i] = acc[i] * s[i]
+
+
+@numba.njit(**NJIT)
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q, Qs, b, S, shape_from, repeats,
+                      cells, cell, bins, floor, feat, shape, prior):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
     2 halves[k] / (cells * cell + 1) reference units, each point's descriptor projected on the stage's basis
-    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point, where the
+    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point (R[k] as
+    int16, transposed, with per-output scales: Q (K, 68 d, 2 L), Qs (K, 2 L), ``_qmatvec``), where the
     stages from ``shape_from`` on read the points' own shape in the reference frame (s = (pts - centroid) M^-1 -
     ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2) float64 <- the sum of the (S[k] s) @ M
     moves. The last stage runs ``repeats`` more times, each on the points as the one before left them. Returns the
@@ -226,7 +257,8 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, R,
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        d = np.dot(R[k], z.reshape(-1))
+        d = np.empty(2 * L)
+        _qmatvec(Q[k], Qs[k], z.reshape(-1), d)
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)
             d += ds

@@ -108,3 +108,24 @@ def test_fast_atan2_is_close_to_math_atan2():
     for y, x in rng.normal(size=(2000, 2)) * np.array([1.0, 3.0]):
         assert abs(_atan2(y, x) - np.arctan2(y, x)) < 2e-5
     assert _atan2(0.0, 0.0) == 0.0 and abs(_atan2(0.0, -1.0) - np.pi) < 1e-6
+
+
+def test_quantised_regressors_and_their_product():
+    from aamtrack._kernels.patches import _qmatvec
+    from aamtrack.landmark_cascade import quantise_rows
+
+    rng = np.random.default_rng(SEED)
+    R = (rng.normal(0, 1, (2, 136, 1633)) * rng.uniform(1e-4, 1.0, (2, 136, 1))).astype(np.float32)
+    R[1, 7] = 0.0  # a row of zeros keeps a usable scale
+    Q, s = quantise_rows(R)
+    assert Q.dtype == np.int16 and Q.shape == (2, 1633, 136) and s.shape == (2, 136)
+    back = np.swapaxes(Q, -1, -2) * s[..., None].astype(np.float64)
+    assert np.all(np.abs(back - R) <= 0.51 * s[..., None])  # half a step of the row's scale (R / s in float32)
+    assert np.abs(back - R).max() <= np.abs(R).max() / 32767  # 1.5e-5 of the largest weight at most
+    z = rng.normal(0, 1, 1633).astype(np.float32)  # an odd length: the remainder after the blocks of four
+    for k in range(2):
+        out = np.empty(136)
+        _qmatvec(Q[k], s[k], z, out)
+        want = back[k] @ z.astype(np.float64)
+        assert np.abs(out - want).max() < 1e-5 * np.abs(back[k]).sum(1).max()  # float32 sums
+        assert np.abs(out - R[k].astype(np.float64) @ z).max() < 1e-3 * np.abs(R[k] @ z).max()  # ~ the float product

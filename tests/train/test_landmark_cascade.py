@@ -64,9 +64,11 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
     for g, s in zip(gray[test], starts):  # compiled against numpy steps, points and the validator's features
         for c in (cascade, repeated):
             (x, z, prior), (x_slow, z_slow, prior_slow) = c.run(g, 1.0, s), c.run_slow(g, 1.0, s)
-            assert np.abs(x - x_slow).max() < 1e-3  # px: the compiled cascade is the numpy one (float32 sums aside)
+            # px: the compiled cascade is the numpy one, float32 sums and its int16 regressors aside (0.00055 px
+            # when written); the descriptors read at those points move with them
+            assert np.abs(x - x_slow).max() < 1e-3
             assert np.abs(prior - prior_slow).max() < 1e-3 and np.abs(prior).max() > 1e-3  # px, and it moved them
-            assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 1e-4 * max(1.0, np.abs(z_slow).max())
+            assert z.shape == (68 * 24,) and np.abs(z - z_slow).max() < 5e-4 * max(1.0, np.abs(z_slow).max())
             assert np.array_equal(c.apply(g, 1.0, s), x)
         # repeats: the last stage run again on the points it left, twice; z is the last pass's
         x2, z2, _ = repeated.run(g, 1.0, s)

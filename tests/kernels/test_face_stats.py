@@ -110,7 +110,9 @@ def test_median_kernel_is_numpys_median(n):
     cases = [rng.random(n), np.abs(rng.normal(0, 3, n)), np.abs(np.round(rng.normal(0, 3, n) * 4) / 4),  # ties
              np.abs(rng.standard_cauchy(n)),  # a few values far out: the middle ranks share a bin with many others
              np.where(rng.random(n) < 0.7, 0.0, rng.random(n)),  # most values tied at 0
-             np.full(n, 2.5), np.arange(n)[::-1] * 1e-3]
+             np.full(n, 2.5), np.arange(n)[::-1] * 1e-3,
+             np.repeat([0.0, 1.0], [n // 2, n - n // 2]),  # the middle ranks at the two ends of the range
+             np.r_[np.zeros(n // 2), np.full(n - n // 2, 7.0)][rng.permutation(n)] + (rng.random(n) < 0.01)]
     for v in cases:
         v = v.astype(np.float32)
         assert _middle(v.copy()) == np.median(v)  # exact: the same float32 values and mean

@@ -197,7 +197,7 @@ def face_sharpness(image, scale: float, pts, pad: int, k1, k2) -> float:
 
 def face_noise_and_deviation(image, scale: float, pts) -> tuple[float, float]:
     """(median |Laplacian| of the face's box's inner pixels, the box's standard deviation), or (0, -1) for a box
-    too small or off the image (``aamtrack._kernels.face_stats._laplacian_and_deviation``): image (H, W) float32,
+    too small or off the image (``aamtrack._kernels.face_stats._noise_and_deviation``): image (H, W) float32,
     the points pts (L, 2) in frame pixels."""
-    med, sd = _fs._laplacian_and_deviation(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts"))
+    med, sd = _fs._noise_and_deviation(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts"))
     return float(med), float(sd)

@@ -1,5 +1,5 @@
 """Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and what its contrast
-over the image's noise is read from (``_laplacian_and_deviation``: the median absolute Laplacian and the
+over the image's noise is read from (``_noise_and_deviation``: the median absolute Laplacian and the
 standard deviation), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``).
 In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms, most of it per-call overhead on
 boxes of a few thousand pixels; here each is one compiled call.
@@ -258,7 +258,7 @@ def _middle(v):
 
 
 @numba.njit(**NJIT)
-def _laplacian_and_deviation(img, scale, pts):
+def _noise_and_deviation(img, scale, pts):
     """What ``landmark_cascade.signal_to_noise`` reads of the face's box (no pad): (the median of the |4-neighbour
     Laplacian| of the box's inner pixels, float32, each formed as numpy forms 4 c - up - down - left - right, the
     median as np.median takes it (``_middle``); the box's standard deviation, float64 from the sums of values and

@@ -248,6 +248,7 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
     side = cells * cell
     n2 = _squared_norm(ref)
     z = np.zeros((L, basis.shape[2]), np.float32)
+    d = np.empty(2 * L)
     prior[:] = 0.0
     n = halves.shape[0]
     for it in range(n + repeats if n > 0 else 0):
@@ -257,7 +258,6 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        d = np.empty(2 * L)
         _qmatvec(Q[k], Qs[k], z.reshape(-1), d)
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)

@@ -23,7 +23,10 @@ Variants (each an image transform that moves the reference points with the image
     rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
     screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``), dim_small (all at once, as in a
     dim room: shrunk to 45 px between the eyes, blurred by 0.04 of that, dark_cast's gains, noise sigma 8);
-    video only: rot_sweep (roll 30 sin(2 pi t / 10 s) degrees about the image centre), blank_black /
+    video only: rot_sweep (roll 30 sin(2 pi t / 10 s) degrees about the image centre), shake (a hand-held
+    camera's shake: each frame moved by o_t = 0.6 o_(t-1) + a jump of up to 0.35 outer eye distances in a random
+    direction, so the face jumps by up to 0.35 eye distances a frame (23 px on cap12), where the tracker's
+    constant-velocity prediction expects it to go on the other way), blank_black /
     blank_grey / blank_colour (uniform skin tone) / blank_noise (uniform random pixels): 20 such frames inserted
     in the middle of the video.
     The scale of blur and small30 comes from the reference: per image for stills, the median over the frames
@@ -100,6 +103,8 @@ SMALL_EYE_PX = 30.0
 ROTATION_DEG = 30.0
 SWEEP_PERIOD_S = 10.0
 GAP_FRAMES = 20
+SHAKE_EYE = 0.35                 # shake: each frame's jump, up to this many outer eye distances
+SHAKE_HOLD = 0.6                 # shake: the share of the last offset kept before the jump (drifts back)
 DIM_EYE_PX = 45.0                # dim_small: the face shrunk to this eye distance (never enlarged),
 DIM_BLUR_EYE = 0.04              # blurred by this share of it, darkened by DARK_GAINS,
 DIM_NOISE = 8.0                  # and this sensor noise
@@ -311,6 +316,31 @@ def _sweep(images, points, *, rng, per_image):
     return [a for a, _ in out], np.stack([b for _, b in out]), np.ones(len(out), bool)
 
 
+def shake_offsets(n: int, eye_px: float, rng: np.random.Generator) -> np.ndarray:
+    """(n, 2) pixel offsets of a hand-held camera's shake: o_t = SHAKE_HOLD o_(t-1) + j_t, j_t in a random
+    direction, of a length uniform in [0, SHAKE_EYE eye_px]: the face jumps by up to SHAKE_EYE eye distances a
+    frame (and twice that against the tracker's constant-velocity prediction), never far from where it was."""
+    out = np.zeros((n, 2))
+    for t in range(1, n):
+        a = rng.uniform(0.0, 2.0 * math.pi)
+        out[t] = SHAKE_HOLD * out[t - 1] + rng.uniform(0.0, SHAKE_EYE * eye_px) * np.array([math.cos(a), math.sin(a)])
+    return out
+
+
+def translate(image, points, *, dx: float, dy: float):
+    """Moved by (dx, dy) pixels (bilinear, reflected border)."""
+    h, w = image.shape[:2]
+    matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+    return out, affine_points(points, matrix)
+
+
+def _shake(images, points, *, rng, per_image):
+    offsets = shake_offsets(len(images), float(_eye_px(points, False)[0]), rng)
+    out = [translate(im, p, dx=o[0], dy=o[1]) for im, p, o in zip(images, points, offsets, strict=True)]
+    return [a for a, _ in out], np.stack([b for _, b in out]), np.ones(len(out), bool)
+
+
 def _gap(kind):
     def build(images, points, *, rng, per_image):
         return insert_gap(images, points, n_blank=GAP_FRAMES, kind=kind, rng=rng)
@@ -352,6 +382,7 @@ VARIANTS = (
             f"of that, B/G/R x {DARK_GAINS}, noise sigma {DIM_NOISE:g}",
             _each(dim_small, lambda e: {"eye_px": e}, random=True)),
     Variant("rot_sweep", f"roll {ROTATION_DEG:g} sin(2 pi t / {SWEEP_PERIOD_S:g} s) deg", _sweep, stills=False),
+    Variant("shake", f"camera shake: jumps of up to {SHAKE_EYE:g} eye distances a frame", _shake, stills=False),
 ) + tuple(Variant(f"blank_{k}", f"{GAP_FRAMES} {k} frames in the middle", _gap(k), stills=False)
           for k in BLANK_KINDS)
 VARIANT_NAMES = tuple(v.name for v in VARIANTS)

@@ -64,6 +64,28 @@ def test_rotation_moves_points_with_a_rendered_marker(degrees):
     assert y < centre[1]
 
 
+@pytest.mark.parametrize("dx, dy", [(12.3, -7.6), (-20.0, 0.0)])
+def test_translate_moves_points_with_a_rendered_marker(dx, dy):
+    pts = _points(np.random.default_rng(SEED))
+    out, moved = rb.translate(_marker(pts[5]), pts, dx=dx, dy=dy)
+    np.testing.assert_allclose(moved - pts, np.broadcast_to([dx, dy], pts.shape), atol=1e-12)
+    assert np.abs(_centroid(out) - moved[5]).max() < 0.05  # px
+
+
+def test_shake_jumps_are_as_large_as_stated_and_stay_near():
+    rng = np.random.default_rng(SEED)
+    eye = 60.0
+    o = rb.shake_offsets(2000, eye, rng)
+    held = o[1:] - rb.SHAKE_HOLD * o[:-1]  # each frame's jump
+    jump = np.linalg.norm(held, axis=1)
+    assert np.all(o[0] == 0) and jump.max() <= rb.SHAKE_EYE * eye + 1e-9
+    assert jump.max() > 0.95 * rb.SHAKE_EYE * eye and abs(np.median(jump) / (rb.SHAKE_EYE * eye) - 0.5) < 0.05
+    # never far: |o| <= max jump / (1 - hold)
+    assert np.linalg.norm(o, axis=1).max() <= rb.SHAKE_EYE * eye / (1 - rb.SHAKE_HOLD)
+    # the frame-to-frame motion is as large as the jumps (not smoothed away)
+    assert np.median(np.linalg.norm(np.diff(o, axis=0), axis=1)) > 0.4 * rb.SHAKE_EYE * eye
+
+
 def test_mirror_moves_points_with_a_marker_and_renumbers_them():
     rng = np.random.default_rng(SEED)
     pts = _points(rng)

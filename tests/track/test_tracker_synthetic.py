@@ -532,14 +532,17 @@ def test_a_cut_restarts_the_track_with_a_detection(synth_model):
     print(f"thumbnail correlation at the cut {corr:.2f}")
     assert corr < TrackerConfig().cut_below  # the premise: this is a cut by the rule
     runs = {}
-    for cut in (TrackerConfig().cut_below, 0.0):
-        tracker = Tracker(synth_model, config=TrackerConfig(cut_below=cut))
-        runs[cut] = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
-    on, off = runs[TrackerConfig().cut_below], runs[0.0]
+    for cut, redetect in ((TrackerConfig().cut_below, True), (0.0, False), (0.0, True)):
+        tracker = Tracker(synth_model, config=TrackerConfig(cut_below=cut, redetect_lost=redetect))
+        runs[cut, redetect] = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
+    on = runs[TrackerConfig().cut_below, True]
     assert [r.status for r in on[:10]] == ["detected"] + ["tracked"] * 9
     assert on[10].status == "detected" and all(r.status == "tracked" for r in on[11:])
     assert np.linalg.norm(on[10].landmarks - truth[10], axis=1).mean() < 1.5  # px
-    assert off[10].status != "detected"  # without the rule the old track goes on (or is lost) first
+    # without the rule (and without ``redetect_lost``) the old track goes on (or is lost) first
+    assert runs[0.0, False][10].status != "detected"
+    # without the rule, a track that the cut makes lose the face finds it again in the same frame
+    assert runs[0.0, True][10].status == "detected"
 
 
 def test_tracked_frames_search_the_finer_couples(synth_model, synth_model3d):
@@ -984,3 +987,21 @@ def test_blurred_blank_frames_are_never_tracked(synth_model):
     assert all(r.success for r in results[:6])
     assert all(not r.success for r in results[6:12])  # no blurred blank reported tracked
     assert all(r.success for r in results[13:])
+
+
+def test_a_face_that_jumps_out_of_the_search_s_reach_is_found_again_in_the_same_frame(synth_model):
+    """A tracked face jumps 70 px (more than half its width) from one frame to the next, shot changes off: the
+    tracked search cannot follow (the premise: with ``redetect_lost`` off that frame is lost and the next one
+    detected); with it (the default) the frame is detected at once, on the face, and tracking goes on."""
+    ref = synth.face_layout()
+    here = synth.project2d(ref, 0.0, 110, 120, 120)
+    there = synth.project2d(ref, 0.0, 180, 120, 120)
+    frames = [synth.render(ref, here, (320, 240))] * 3 + [synth.render(ref, there, (320, 240))] * 3
+    runs = {}
+    for redetect in (False, True):
+        cfg = TrackerConfig(cut_below=0, redetect_lost=redetect)
+        runs[redetect] = list(Tracker(synth_model, config=cfg).track(synth_frame(i, f) for i, f in enumerate(frames)))
+    assert [r.status for r in runs[False]] == ["detected", "tracked", "tracked", "lost", "detected", "tracked"]
+    assert [r.status for r in runs[True]] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]
+    jumped = runs[True][3]
+    assert np.linalg.norm(jumped.landmarks - there, axis=1).mean() < 2.0  # px: on the face where it went

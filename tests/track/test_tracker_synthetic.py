@@ -1005,3 +1005,33 @@ def test_a_face_that_jumps_out_of_the_search_s_reach_is_found_again_in_the_same_
     assert [r.status for r in runs[True]] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]
     jumped = runs[True][3]
     assert np.linalg.norm(jumped.landmarks - there, axis=1).mean() < 2.0  # px: on the face where it went
+
+
+def test_tracked_frames_search_a_tighter_crop_to_the_same_points(moving_video, synth_model):
+    """``roi_margin_tracked``: tracked frames crop the face's box grown by 0.2 of its size a side (detections by
+    ``roi_margin``, 0.3): a crop about (1.4 / 1.6)^2 of the area, and the tracked points within a small fraction of
+    a pixel of those from the wider crop."""
+    path, truth = moving_video
+    runs, crops = {}, {}
+    for margin in (0.3, 0.2):
+        tracker = Tracker(synth_model, config=TrackerConfig(roi_margin_tracked=margin))
+        sizes = crops[margin] = []
+        crop = tracker.crop
+
+        def spy(image, starts, margin=None, crop=crop, sizes=sizes):
+            levels, off = crop(image, starts, margin)
+            sizes.append(levels.gray.size)
+            return levels, off
+
+        tracker.crop = spy
+        with open_frames(path) as src:
+            runs[margin] = list(tracker.track(src))
+    assert all(r.success for r in runs[0.2]) and [r.status for r in runs[0.2]] == [r.status for r in runs[0.3]]
+    tracked = [i for i, r in enumerate(runs[0.2]) if r.status == "tracked"]
+    ratio = np.median([b / a for a, b in zip(crops[0.3], crops[0.2])][-len(tracked):])
+    assert 0.7 < ratio < 0.85  # (1.4 / 1.6)^2 = 0.77 where the frame does not clip the crop
+    moved = [np.linalg.norm(runs[0.2][i].landmarks - runs[0.3][i].landmarks, axis=1).mean() for i in tracked]
+    print(f"crop area ratio {ratio:.3f}, tracked points moved by {max(moved):.3f} px at most")
+    assert max(moved) < 0.2  # px
+    err = np.array([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(runs[0.2], truth)])
+    assert err.mean() < 1.0  # px, as the default

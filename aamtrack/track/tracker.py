@@ -16,7 +16,7 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ..detector import HaarDetector, guess_points, unturn
-from ..imaging import thumbnail, to_gray32
+from ..imaging import crop_gray32, thumbnail
 from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import mirror_points, similarity_fit
 from ..mesh.shape_model import N_POSE, initial_pose
@@ -225,7 +225,7 @@ class Tracker:
         x1, y1 = int(min(W, np.ceil(hi[0] + m))), int(min(H, np.ceil(hi[1] + m)))
         if x1 - x0 < 8 or y1 - y0 < 8:
             x0, y0, x1, y1 = 0, 0, W, H
-        return self.searcher.levels(to_gray32(image[y0:y1, x0:x1])), np.array([x0, y0], float)  # grey of the crop
+        return self.searcher.levels(crop_gray32(image, x0, y0, x1, y1)), np.array([x0, y0], float)
 
     def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0, crop=None,
                 landmarks: bool = True, last: int = 0, soft: bool | None = None,

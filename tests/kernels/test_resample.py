@@ -29,3 +29,17 @@ def test_resize_area_edges_and_fallbacks(k):
     img = np.random.default_rng(SEED).random((97, 131)).astype(np.float32) * 255
     want = cv2.resize(img, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
     assert np.array_equal(resize_area(img, k), want)
+
+
+def test_crop_gray32_is_the_crop_s_grey_image():
+    """``crop_gray32`` (wide crops of BGR frames converted as their band of whole rows) gives the bits of
+    ``to_gray32`` of the crop, for BGR, BGRA and grey frames, wide and narrow crops, at the frame's edges."""
+    from aamtrack.imaging import crop_gray32, to_gray32
+
+    rng = np.random.default_rng(SEED)
+    frame = rng.integers(0, 256, (120, 160, 3), dtype=np.uint8)
+    for image in (frame, cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA), cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)):
+        for x0, y0, x1, y1 in ((0, 0, 160, 120), (30, 10, 150, 100), (100, 50, 130, 70), (0, 60, 60, 120)):
+            got = crop_gray32(image, x0, y0, x1, y1)
+            assert got.dtype == np.float32 and got.flags.c_contiguous
+            assert np.array_equal(got, to_gray32(image[y0:y1, x0:x1])), (image.shape, x0, y0, x1, y1)

@@ -203,6 +203,18 @@ def rotate(image, points, *, degrees: float, center=None):
     if center is None:
         center = ((w - 1) / 2.0, (h - 1) / 2.0)
     matrix = cv2.getRotationMatrix2D((float(center[0]), float(center[1])), float(degrees), 1.0)
+    return warp_affine(image, points, matrix)
+
+
+def translate(image, points, *, dx: float, dy: float):
+    """Moved by (dx, dy) pixels (bilinear, reflected border)."""
+    return warp_affine(image, points, np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]]))
+
+
+def warp_affine(image, points, matrix):
+    """The image warped by the affine ``matrix`` (2, 3) (OpenCV's convention), same size, bilinear, reflected
+    border, and the points moved with it."""
+    h, w = image.shape[:2]
     out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
     return out, affine_points(points, matrix)
 
@@ -289,20 +301,23 @@ def _eye_px(points: np.ndarray, per_image: bool) -> np.ndarray:
     return d if per_image else np.full(len(d), float(np.nanmedian(d)))
 
 
+def _all_faces(pairs) -> tuple[list, np.ndarray, np.ndarray]:
+    """A variant's (images, points (n, 68, 2), is_face all True) from its transforms' (image, points) pairs."""
+    return [a for a, _ in pairs], np.stack([b for _, b in pairs]), np.ones(len(pairs), bool)
+
+
 def _each(transform: Callable, sized: Callable | None = None, *, random: bool = False):
     """A variant builder applying ``transform`` frame by frame; ``sized(eye_px) -> kwargs`` for transforms sized
     by the face, ``random`` for those that take the variant's ``rng``."""
     def build(images, points, *, rng, per_image):
         eye = _eye_px(points, per_image) if sized is not None else None
-        out_img, out_pts = [], []
+        pairs = []
         for i, (image, pts) in enumerate(zip(images, points, strict=True)):
             kw = sized(eye[i]) if sized is not None else {}
             if random:
                 kw["rng"] = rng
-            a, b = transform(image, pts, **kw)
-            out_img.append(a)
-            out_pts.append(b)
-        return out_img, np.stack(out_pts), np.ones(len(out_img), bool)
+            pairs.append(transform(image, pts, **kw))
+        return _all_faces(pairs)
     return build
 
 
@@ -311,9 +326,8 @@ def _clean(images, points, *, rng, per_image):
 
 
 def _sweep(images, points, *, rng, per_image):
-    out = [rotate(im, p, degrees=ROTATION_DEG * math.sin(2 * math.pi * i / (SWEEP_PERIOD_S * FPS)))
-           for i, (im, p) in enumerate(zip(images, points, strict=True))]
-    return [a for a, _ in out], np.stack([b for _, b in out]), np.ones(len(out), bool)
+    return _all_faces([rotate(im, p, degrees=ROTATION_DEG * math.sin(2 * math.pi * i / (SWEEP_PERIOD_S * FPS)))
+                       for i, (im, p) in enumerate(zip(images, points, strict=True))])
 
 
 def shake_offsets(n: int, eye_px: float, rng: np.random.Generator) -> np.ndarray:
@@ -327,18 +341,9 @@ def shake_offsets(n: int, eye_px: float, rng: np.random.Generator) -> np.ndarray
     return out
 
 
-def translate(image, points, *, dx: float, dy: float):
-    """Moved by (dx, dy) pixels (bilinear, reflected border)."""
-    h, w = image.shape[:2]
-    matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
-    return out, affine_points(points, matrix)
-
-
 def _shake(images, points, *, rng, per_image):
     offsets = shake_offsets(len(images), float(_eye_px(points, False)[0]), rng)
-    out = [translate(im, p, dx=o[0], dy=o[1]) for im, p, o in zip(images, points, offsets, strict=True)]
-    return [a for a, _ in out], np.stack([b for _, b in out]), np.ones(len(out), bool)
+    return _all_faces([translate(im, p, dx=o[0], dy=o[1]) for im, p, o in zip(images, points, offsets, strict=True)])
 
 
 def _gap(kind):

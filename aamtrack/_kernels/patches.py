@@ -201,13 +201,13 @@ def _squared_norm(ref):
 
 
 @numba.njit(**NJIT)
-def _qmatvec(Q, s, z, out):
+def _qmatvec(Q, s, z, acc, out):
     """out (m,) float64 <- diag(s) Q^T z, the product of a matrix stored transposed and quantised
-    (``landmark_cascade.quantise_rows``): Q (n, m) int16, s (m,) float32 each output's scale, z (n,) float32.
-    Four rows of Q at a time into float32 sums (each output's terms in the order of n, in fours), the inner loop
-    across the m outputs, so it vectorises without reassociating anything."""
+    (``landmark_cascade.quantise_rows``): Q (n, m) int16, s (m,) float32 each output's scale, z (n,) float32;
+    acc (m,) float32 scratch. Four rows of Q at a time into float32 sums (each output's terms in the order of n,
+    in fours), the inner loop across the m outputs, so it vectorises without reassociating anything."""
     n, m = Q.shape
-    acc = np.zeros(m, np.float32)
+    acc[:] = 0.0
     n4 = n - n % 4
     for j in range(0, n4, 4):
         z0 = z[j]
@@ -249,6 +249,7 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
     n2 = _squared_norm(ref)
     z = np.zeros((L, basis.shape[2]), np.float32)
     d = np.empty(2 * L)
+    acc = np.empty(2 * L, np.float32)
     prior[:] = 0.0
     n = halves.shape[0]
     for it in range(n + repeats if n > 0 else 0):
@@ -258,7 +259,7 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        _qmatvec(Q[k], Qs[k], z.reshape(-1), d)
+        _qmatvec(Q[k], Qs[k], z.reshape(-1), acc, d)
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)
             d += ds

@@ -39,8 +39,8 @@ def _motion(p: np.ndarray, q: np.ndarray) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    """min_confidence: below it (the model's fit validator) a frame is lost and the detector runs on the next
-    frame.
+    """min_confidence: below it (the model's fit validator) a frame's fit is not accepted; the detector then runs
+    (at once in the same frame for a tracked one, ``redetect_lost``; else on the next frame).
     redetect_lost: a tracked frame whose search is lost is looked for again at once in the same frame (the
     detector's thorough search, as the next frame would have it), and reported as a detection if that fit is
     accepted. A face that jumps further than the tracked search reaches (a hand-held camera's shake, a quick head

@@ -125,7 +125,7 @@ def test_quantised_regressors_and_their_product():
     z = rng.normal(0, 1, 1633).astype(np.float32)  # an odd length: the remainder after the blocks of four
     for k in range(2):
         out = np.empty(136)
-        _qmatvec(Q[k], s[k], z, out)
+        _qmatvec(Q[k], s[k], z, np.full(136, 7.0, np.float32), out)  # scratch with old sums in it: cleared
         want = back[k] @ z.astype(np.float64)
         assert np.abs(out - want).max() < 1e-5 * np.abs(back[k]).sum(1).max()  # float32 sums
         assert np.abs(out - R[k].astype(np.float64) @ z).max() < 1e-3 * np.abs(R[k] @ z).max()  # ~ the float product

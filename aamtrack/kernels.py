@@ -147,19 +147,20 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
 
 
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, quantised, scales,
-                     biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float,
+                     expand, biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float,
                      feat, shape, prior, repeats: int = 0) -> np.ndarray:
     """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
     float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``, the last stage
-    ``repeats`` more times; the stages' regressors as ``landmark_cascade.quantise_rows`` gives them (quantised
-    (K, 68 d, 2 L) int16, scales (K, 2 L) float32); the stages from ``shape_from`` on read the points' shape; feat
+    ``repeats`` more times; the stages' regressors of rank r as ``LandmarkCascade.quantised`` gives them (quantised
+    (K, 68 d, r) int16 and scales (K, r) float32 of their row factors, expand (K, r, 2 L) float32 the column
+    factors transposed); the stages from ``shape_from`` on read the points' shape; feat
     (L, cells * cells * bins) and shape (2 L,) float32 scratch;
     prior (L, 2) float64 <- the shape term's part of the move. Returns (L, d) float32: the last stage's projected
     descriptors."""
     return _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
                          _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
                          _in(basis, F32, 3, "basis"), _in(quantised, I16, 3, "quantised"),
-                         _in(scales, F32, 2, "scales"),
+                         _in(scales, F32, 2, "scales"), _in(expand, F32, 3, "expand"),
                          _in(biases, F64, 2, "biases"), _in(shape_regressors, F32, 3, "shape_regressors"),
                          int(shape_from), int(repeats), int(cells), int(cell), int(bins), float(floor),
                          _out(feat, F32, 2, "feat"),

@@ -135,6 +135,24 @@ def quantise_rows(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(np.swapaxes(Q, -1, -2)), s
 
 
+def factorise(R: np.ndarray, rank: int) -> tuple[np.ndarray, np.ndarray]:
+    """Regressors R (K, m, n) as their best rank-``rank`` approximations (Frobenius), R_k ~ U_k W_k: (Ut (K, r, m)
+    float32, U_k transposed, orthonormal columns: the leading eigenvectors of R_k R_k^T; W (K, r, n) float32 =
+    U_k^T R_k), r = min(rank, m) (m when rank <= 0: exact up to rounding). Eigenvectors of the m x m product
+    rather than an SVD of R: the same subspace in a tenth of the time (a few ms a stage at load)."""
+    R = np.asarray(R, np.float64)
+    K, m, _ = R.shape
+    r = m if rank <= 0 else min(int(rank), m)
+    Ut = np.empty((K, r, m), np.float32)
+    W = np.empty((K, r, R.shape[2]), np.float32)
+    for k in range(K):
+        _, vecs = np.linalg.eigh(R[k] @ R[k].T)
+        top = vecs[:, ::-1][:, :r]  # eigh sorts ascending
+        Ut[k] = top.T
+        W[k] = top.T @ R[k]
+    return Ut, W
+
+
 def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) -> np.ndarray:
     """(..., n_points d) each point's descriptor of phi (..., n_points * p) projected on a basis (p, d) about its
     mean (p,)."""
@@ -157,7 +175,14 @@ class LandmarkCascade:
     with 0 / 1 / 2 repeats, cap12 against dlib 0.0305 -> 0.0288 -> 0.0275; 2D with 1: 0.0352 -> 0.0347, 0.0251 ->
     0.0240), where a fifth stage learned on the fourth's output at the same patch measured no better. Not on a dim,
     noisy face (``Searcher.refine_landmarks``): there the repeats follow the noise (robustness, cap12 dim_small
-    0.0327 -> 0.0358, 95.3% -> 94.4% tracked)."""
+    0.0327 -> 0.0358, 95.3% -> 94.4% tracked).
+    rank: the compiled ``run`` applies each stage's regressor as its best rank-``rank`` approximation
+    (``factorise``; 0: the full one), made at first use, not stored in the model file (which keeps the full
+    regressors). A regressor's 136 outputs move 68 points, which mostly move together: the shipped models keep 99%
+    of each regressor's squared norm in 46-68 dimensions. Rank 64 reads under half the weights of the full
+    product, which a tracked frame reads six times from memory. Measured 2026-11-28 (3D, shipped model, no
+    retraining, ``benchmarks/accuracy.py``): helen_test mean NME 0.0339 full / 0.0339 rank 96 / 0.0339 rank 64 /
+    0.0341 rank 48 / 0.0349 rank 32, cap12 against dlib 0.0275 / 0.0275 / 0.0276 / 0.0278 / 0.0284."""
 
     ref: np.ndarray
     spec: DescriptorSpec
@@ -168,15 +193,29 @@ class LandmarkCascade:
     biases: np.ndarray
     shape_regressors: np.ndarray
     repeats: int = 0
+    rank: int = 64
 
     @property
     def n_stages(self) -> int:
         return len(self.halves)
 
     @cached_property
-    def quantised(self) -> tuple[np.ndarray, np.ndarray]:
-        """The regressors as the compiled ``run`` reads them (``quantise_rows``)."""
-        return quantise_rows(self.regressors)
+    def factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Ut (K, r, 136), W (K, r, 68 d)) float32: the regressors of rank ``rank`` (``factorise``)."""
+        return factorise(self.regressors, self.rank)
+
+    @cached_property
+    def applied(self) -> np.ndarray:
+        """(K, 136, 68 d) float32: the regressors as ``run`` applies them (of rank ``rank``, before quantising)."""
+        Ut, W = self.factors
+        return np.matmul(np.swapaxes(Ut, 1, 2).astype(np.float64), W).astype(np.float32)
+
+    @cached_property
+    def quantised(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The regressors as the compiled ``run`` reads them: their row factors W quantised (``quantise_rows``)
+        and the column factors U transposed (``factors``)."""
+        Ut, W = self.factors
+        return (*quantise_rows(W), Ut)
 
     @cached_property
     def shape_from(self) -> int:
@@ -203,7 +242,7 @@ class LandmarkCascade:
         prior = np.empty_like(x)
         z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
                              self.basis_mean[k], self.basis[k], self.quantised[0][k], self.quantised[1][k],
-                             self.biases[k], self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
+                             self.quantised[2][k], self.biases[k], self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
                              prior=prior, repeats=self.repeats if repeats is None else repeats)
@@ -214,7 +253,8 @@ class LandmarkCascade:
         return self.run_slow(image, scale, pts)[0]
 
     def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``run`` (all stages, the last one ``repeats`` more times) stage by stage in numpy."""
+        """``run`` (all stages, the last one ``repeats`` more times) stage by stage in numpy (the regressors of
+        rank ``rank``, unquantised)."""
         x = np.array(pts, dtype=np.float64)
         buf = np.empty((len(x), self.spec.size), np.float32)
         prior = np.zeros_like(x)
@@ -227,5 +267,5 @@ class LandmarkCascade:
                                     self.basis[k])
             ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
             prior += ds
-            x += (self.regressors[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds
+            x += (self.applied[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds
         return x, z.reshape(-1), prior

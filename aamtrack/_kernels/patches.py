@@ -231,14 +231,28 @@ def _qmatvec(Q, s, z, acc, out):
 
 
 @numba.njit(**NJIT)
-def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q, Qs, b, S, shape_from, repeats,
+def _expand(Ut, t, out):
+    """out (m,) float64 <- U t, U stored transposed: Ut (r, m) float32, t (r,) float64 (one column of U at a time
+    across the m outputs: vectorises, each output summed in the order of r)."""
+    r, m = Ut.shape
+    out[:] = 0.0
+    for j in range(r):
+        tj = t[j]
+        u = Ut[j]
+        for i in range(m):
+            out[i] += u[i] * tj
+
+
+@numba.njit(**NJIT)
+def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q, Qs, Ut, b, S, shape_from, repeats,
                       cells, cell, bins, floor, feat, shape, prior):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the
     similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the
     descriptors (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step
     2 halves[k] / (cells * cell + 1) reference units, each point's descriptor projected on the stage's basis
-    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point (R[k] as
-    int16, transposed, with per-output scales: Q (K, 68 d, 2 L), Qs (K, 2 L), ``_qmatvec``), where the
+    (z = (feat - basis_mean[k]) basis[k], (L, d)), and pts += (R[k] z + S[k] s + b[k]) @ M per point, R[k] of rank
+    r as U[k] W[k] (``landmark_cascade.factorise``): W[k] (r, 68 d) as int16, transposed, with per-row scales (Q
+    (K, 68 d, r), Qs (K, r), ``_qmatvec``), U[k] (2 L, r) transposed, Ut (K, r, 2 L) float32 (``_expand``), where the
     stages from ``shape_from`` on read the points' own shape in the reference frame (s = (pts - centroid) M^-1 -
     ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2) float64 <- the sum of the (S[k] s) @ M
     moves. The last stage runs ``repeats`` more times, each on the points as the one before left them. Returns the
@@ -249,7 +263,8 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
     n2 = _squared_norm(ref)
     z = np.zeros((L, basis.shape[2]), np.float32)
     d = np.empty(2 * L)
-    acc = np.empty(2 * L, np.float32)
+    t = np.empty(Ut.shape[1])
+    acc = np.empty(Ut.shape[1], np.float32)
     prior[:] = 0.0
     n = halves.shape[0]
     for it in range(n + repeats if n > 0 else 0):
@@ -259,7 +274,8 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        _qmatvec(Q[k], Qs[k], z.reshape(-1), acc, d)
+        _qmatvec(Q[k], Qs[k], z.reshape(-1), acc, t)
+        _expand(Ut[k], t, d)
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):
             ds = np.dot(S[k], shape)
             d += ds

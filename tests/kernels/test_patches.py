@@ -129,3 +129,31 @@ def test_quantised_regressors_and_their_product():
         want = back[k] @ z.astype(np.float64)
         assert np.abs(out - want).max() < 1e-5 * np.abs(back[k]).sum(1).max()  # float32 sums
         assert np.abs(out - R[k].astype(np.float64) @ z).max() < 1e-3 * np.abs(R[k] @ z).max()  # ~ the float product
+
+
+def test_low_rank_regressors_are_the_best_approximation_and_the_kernel_expands_them():
+    from aamtrack._kernels.patches import _expand
+    from aamtrack.landmark_cascade import factorise
+
+    rng = np.random.default_rng(SEED + 3)
+    A = rng.normal(0, 1, (2, 136, 20)) @ rng.normal(0, 1, (2, 20, 900))  # rank 20 exactly
+    Ut, W = factorise(A, 20)
+    assert Ut.shape == (2, 20, 136) and W.shape == (2, 20, 900) and Ut.dtype == W.dtype == np.float32
+    back = np.swapaxes(Ut, 1, 2).astype(np.float64) @ W
+    assert np.abs(back - A).max() < 1e-5 * np.abs(A).max()  # float32 factors of a rank-20 matrix: exact
+    assert np.allclose(Ut[0] @ Ut[0].T, np.eye(20), atol=1e-6)  # orthonormal columns
+    R = rng.normal(0, 1, (1, 136, 700)) * np.linspace(2.0, 0.01, 136)[None, :, None]
+    for rank in (8, 64):
+        Ut, W = factorise(R, rank)
+        approx = Ut[0].T.astype(np.float64) @ W[0]
+        U, s, Vt = np.linalg.svd(R[0], full_matrices=False)
+        best = (U[:, :rank] * s[:rank]) @ Vt[:rank]  # Eckart-Young: the truncated SVD is the best of its rank
+        assert np.abs(approx - best).max() < 1e-5 * np.abs(best).max()
+        assert np.linalg.norm(R[0] - approx) > 0.01 * np.linalg.norm(R[0])  # and it did leave something out
+    Ut, W = factorise(R, 0)  # 0: full rank, the matrix itself
+    assert Ut.shape[1] == 136 and np.abs(Ut[0].T.astype(np.float64) @ W[0] - R[0]).max() < 1e-5 * np.abs(R).max()
+    t = rng.normal(0, 1, 64)
+    out = np.full(136, 3.0)  # old values: cleared
+    Ut, _ = factorise(R, 64)
+    _expand(Ut[0], t, out)
+    assert np.abs(out - Ut[0].T.astype(np.float64) @ t).max() < 1e-12 * np.abs(Ut[0]).sum(0).max() * np.abs(t).max()

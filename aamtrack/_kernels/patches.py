@@ -82,7 +82,14 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
     n = cells * cell
     G = n + 2
     c0 = 0.5 * (G - 1)
-    patch = np.empty((G, G), np.float32)
+    N = G * G
+    patch = np.empty(N, np.float32)  # the samples, row by row
+    grid = patch.reshape(G, G)  # (the differences read from flat indices measured 20% slower)
+    xs = np.empty(N)  # where each sample lies (level pixels), then its bilinear weights and first pixel
+    ys = np.empty(N)
+    fxs = np.empty(N, np.float32)
+    fys = np.empty(N, np.float32)
+    ats = np.empty(N, np.int64)
     gxs = np.empty(n * n, np.float32)
     gys = np.empty(n * n, np.float32)
     mags = np.empty(n * n, np.float32)  # float32 as the samples: the orientation pass vectorises twice as wide
@@ -100,32 +107,38 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
     for li in range(L):
         cx = scale * pts[li, 0] + shift
         cy = scale * pts[li, 1] + shift
-        inside = cx - ext_x >= 0.0 and cx + ext_x < W - 1.0 and cy - ext_y >= 0.0 and cy + ext_y < H - 1.0
         for i in range(G):
             dv = i - c0
             rx = cx + vx * dv - ux * c0
             ry = cy + vy * dv - uy * c0
-            if inside:  # no clamping: the whole grid is in the image
-                for j in range(G):  # (on the flat image: 2-d indexing measured 10% slower)
-                    x = rx + ux * j
-                    y = ry + uy * j
-                    x0 = int(x)
-                    y0 = int(y)
-                    fx = np.float32(x - x0)
-                    fy = np.float32(y - y0)
-                    at = y0 * W + x0
-                    v00 = flat[at]
-                    v01 = flat[at + W]
-                    top = v00 + fx * (flat[at + 1] - v00)
-                    bot = v01 + fx * (flat[at + W + 1] - v01)
-                    patch[i, j] = top + fy * (bot - top)
-            else:
-                for j in range(G):
-                    patch[i, j] = _bilinear(img, rx + ux * j, ry + uy * j)
+            for j in range(G):
+                xs[i * G + j] = rx + ux * j
+                ys[i * G + j] = ry + uy * j
+        if cx - ext_x >= 0.0 and cx + ext_x < W - 1.0 and cy - ext_y >= 0.0 and cy + ext_y < H - 1.0:
+            # the whole grid is in the image: no clamping, and the gathers apart from the arithmetic (which then
+            # vectorises: 32 -> 19 us for 68 points, the same bits; on the flat image: 2-d indexing measured 10%
+            # slower)
+            for k in range(N):
+                x0 = int(xs[k])
+                y0 = int(ys[k])
+                fxs[k] = np.float32(xs[k] - x0)
+                fys[k] = np.float32(ys[k] - y0)
+                ats[k] = y0 * W + x0
+            for k in range(N):
+                at = ats[k]
+                fx = fxs[k]
+                v00 = flat[at]
+                v01 = flat[at + W]
+                top = v00 + fx * (flat[at + 1] - v00)
+                bot = v01 + fx * (flat[at + W + 1] - v01)
+                patch[k] = top + fys[k] * (bot - top)
+        else:
+            for k in range(N):
+                patch[k] = _bilinear(img, xs[k], ys[k])
         for i in range(n):  # central differences at the interior samples
             for j in range(n):
-                gxs[i * n + j] = patch[i + 1, j + 2] - patch[i + 1, j]
-                gys[i * n + j] = patch[i + 2, j + 1] - patch[i, j + 1]
+                gxs[i * n + j] = grid[i + 1, j + 2] - grid[i + 1, j]
+                gys[i * n + j] = grid[i + 2, j + 1] - grid[i, j + 1]
         for k in range(n * n):
             gx = gxs[k]
             gy = gys[k]

@@ -98,14 +98,16 @@ def residual_batch(image, scale: float, shift: float, shape3d, basis, Q, mean, a
     return E
 
 
-def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid,
-            pix_bary, mode: int, verts, tex, coef, e, delta) -> float:
-    """The learned update cascade on one couple, q (n_q,) float64 updated in place (``_kernels.warp._cascade``).
-    Returns the last stage's mean squared residual."""
+def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, quantised, scales, b, mean, app,
+            pix_vid, pix_bary, mode: int, verts, tex, coef, e, delta) -> float:
+    """The learned update cascade on one couple, q (n_q,) float64 updated in place (``_kernels.warp._cascade``),
+    its matrices as ``Couple.quantised`` gives them (quantised (n_stages, D, n_free) int16, scales (n_stages,
+    n_free) float32). Returns the last stage's mean squared residual."""
     shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
     return _k._cascade(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _out(q, F64, 1, "q"),
                        _in(free, I64, 1, "free"), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"),
-                       _in(R, F32, 3, "cascade"), _in(b, F64, 2, "cascade_bias"), _in(mean, F32, 1, "mean"),
+                       _in(quantised, I16, 3, "quantised"), _in(scales, F32, 2, "scales"),
+                       _in(b, F64, 2, "cascade_bias"), _in(mean, F32, 1, "mean"),
                        _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode), _out(verts, F64, 2, "verts"),
                        _out(tex, F32, 1, "tex"), _out(coef, F64, 1, "coef"), _out(e, F64, 1, "e"),
                        _out(delta, F64, 1, "delta"))

@@ -86,7 +86,7 @@ class Searcher:
         shift = level_shift(r)
         if c.n_stages:
             verts, tex, coef, e, delta = self._scratch[len(t.mean)]
-            cascade(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, c.cascade, c.cascade_bias, t.mean,
+            cascade(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, *c.quantised, c.cascade_bias, t.mean,
                     t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex,
                     coef[:t.appearance.shape[1]], e, delta[:len(c.free)])
             return c.n_stages

@@ -25,6 +25,7 @@ import numba
 import numpy as np
 
 from ._flags import NJIT
+from .patches import _qmatvec
 
 
 @numba.njit(**NJIT)
@@ -321,47 +322,31 @@ def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, m
 
 
 @numba.njit(**NJIT)
-def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, R, b, mean, app, pix_vid, pix_bary, mode,
+def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, Q, Qs, b, mean, app, pix_vid, pix_bary, mode,
              verts, tex, coef, e, delta):
     """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
     delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
 
-    Parameters whose bounds are equal (pinned) are not updated, and their rows are not computed.
-    R (n_stages, n_free, D) float32, b (n_stages, n_free) float64. Scratch: verts (n, 2) float64,
+    Parameters whose bounds are equal (pinned) are not updated (delta 0). R[s] as int16, transposed, with
+    per-row scales (``landmark_cascade.quantise_rows``: Q (n_stages, D, n_free) int16, Qs (n_stages, n_free)
+    float32; ``patches._qmatvec`` on e in float32), b (n_stages, n_free) float64. Scratch: verts (n, 2) float64,
     tex (D,) float32, coef (m,) float64, e (D,) float64, delta (n_free,) float64.
     Returns |e|^2 / D of the last stage's residual (before its update).
     """
     q_new = np.empty_like(q)
-    rows = np.empty(free.shape[0], np.int64)  # the rows to apply: a pinned parameter (the tracker's held shape
-    n_rows = 0                                # units) is not updated, and its row is not computed
-    for a in range(free.shape[0]):
-        if lo[free[a]] != hi[free[a]]:
-            rows[n_rows] = a
-            n_rows += 1
+    n_free = free.shape[0]
     D = e.shape[0]
+    e32 = np.empty(D, np.float32)
+    acc = np.empty(n_free, np.float32)
+    prod = np.empty(n_free)
     err = 0.0
-    for s in range(R.shape[0]):
+    for s in range(Q.shape[0]):
         err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
-        for a in range(free.shape[0]):
-            delta[a] = 0.0
-        k = 0
-        while k + 4 <= n_rows:  # four rows per pass over e: four sums in flight, each still in the order of p
-            r0, r1, r2, r3 = rows[k], rows[k + 1], rows[k + 2], rows[k + 3]
-            a0, a1, a2, a3 = b[s, r0], b[s, r1], b[s, r2], b[s, r3]
-            for p in range(D):
-                ep = e[p]
-                a0 += R[s, r0, p] * ep
-                a1 += R[s, r1, p] * ep
-                a2 += R[s, r2, p] * ep
-                a3 += R[s, r3, p] * ep
-            delta[r0], delta[r1], delta[r2], delta[r3] = a0, a1, a2, a3
-            k += 4
-        for kk in range(k, n_rows):
-            a = rows[kk]
-            acc = b[s, a]
-            for p in range(D):
-                acc += R[s, a, p] * e[p]
-            delta[a] = acc
+        for p in range(D):
+            e32[p] = e[p]
+        _qmatvec(Q[s], Qs[s], e32, acc, prod)
+        for a in range(n_free):
+            delta[a] = prod[a] + b[s, a] if lo[free[a]] != hi[free[a]] else 0.0
         _compose(q, free, delta, 1.0, lo, hi, q_new)
         for i in range(q.shape[0]):
             q[i] = q_new[i]

@@ -6,6 +6,7 @@ import pytest
 
 from aamtrack import kernels
 from aamtrack._kernels import warp as raw
+from aamtrack.landmark_cascade import quantise_rows
 from conftest import SEED
 from kernels.test_warp_kernels import _toy_problem
 
@@ -13,7 +14,7 @@ from kernels.test_warp_kernels import _toy_problem
 def _cascade_args(rng):
     image, shape3d, basis, vid, bary, q = _toy_problem(rng)
     D = 2 * len(vid)
-    R = rng.normal(0, 1e-3, (2, 3, D)).astype(np.float32)
+    R = quantise_rows(rng.normal(0, 1e-3, (2, 3, D)).astype(np.float32))
     b = np.full((2, 3), 0.05)
     mean = rng.normal(0, 1, D).astype(np.float32)
     app = np.linalg.qr(rng.normal(0, 1, (D, 2)))[0].astype(np.float32)
@@ -26,13 +27,13 @@ def test_cast_inputs_give_the_same_fit_without_a_new_specialisation():
     rng = np.random.default_rng(SEED)
     image, shape3d, basis, q, free, lo, hi, R, b, mean, app, vid, bary, scratch = _cascade_args(rng)
     p_ref = q.copy()
-    kernels.cascade(image, 0.9, 0.1, shape3d, basis, p_ref, free, lo, hi, R, b, mean, app, vid, bary, 1, *scratch)
+    kernels.cascade(image, 0.9, 0.1, shape3d, basis, p_ref, free, lo, hi, *R, b, mean, app, vid, bary, 1, *scratch)
     n_sigs = len(raw._cascade.signatures)
     p = q.copy()
     # float64 matrices, a strided image, int32 indices, a Python list of bounds: all cast on the way in
     strided = np.repeat(image, 2, axis=2)[:, :, ::2]
     kernels.cascade(strided, 0.9, 0.1, shape3d.astype(np.float32), basis, p, free.astype(np.int32), list(lo), hi,
-                    R.astype(np.float64), b, mean.astype(np.float64), app.astype(np.float64), vid.astype(np.int64),
+                    R[0].astype(np.int64), R[1].astype(np.float64), b, mean.astype(np.float64), app.astype(np.float64), vid.astype(np.int64),
                     bary.astype(np.float64), 1, *scratch)
     assert np.abs(p - p_ref).max() < 1e-6  # shape3d cast through float32: rounding only
     assert len(raw._cascade.signatures) == n_sigs  # nothing new compiled
@@ -49,7 +50,7 @@ def test_outputs_of_the_wrong_kind_are_refused(bad):
     else:
         q.setflags(write=False)
     with pytest.raises(TypeError, match="q: a writable C-contiguous 1-d float64"):
-        kernels.cascade(image, 1.0, 0.0, shape3d, basis, q, free, lo, hi, R, b, mean, app, vid, bary, 1, *scratch)
+        kernels.cascade(image, 1.0, 0.0, shape3d, basis, q, free, lo, hi, *R, b, mean, app, vid, bary, 1, *scratch)
 
 
 def test_wrong_dimensions_are_named():

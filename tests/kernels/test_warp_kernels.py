@@ -6,6 +6,7 @@ from scipy.ndimage import map_coordinates
 from scipy.spatial.transform import Rotation
 
 from aamtrack._kernels.features import gradient_features
+from aamtrack.landmark_cascade import quantise_rows
 from aamtrack._kernels.warp import (_cascade, _compose, _normalize, _prior_cost, _project, _residual,
                                    _residual_batch, _search, _warp)
 from aamtrack.train.cascade import inverse_compose
@@ -184,13 +185,38 @@ def test_cascade_applies_each_stage_once():
     b = np.array([[0.1, 0.0, 0.05], [0.0, -0.2, 0.05], [0.1, 0.1, 0.0]])
     p = q.copy()
     lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
-    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32),
+    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, *quantise_rows(R), b, np.zeros(D, np.float32),
              np.zeros((D, 0), np.float32), vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0),
              np.empty(D), np.empty(3))
     ref = q.copy()
     for s in range(3):
         _compose(ref.copy(), free, b[s], 1.0, lo, hi, ref)
     assert np.abs(p - ref).max() < 1e-12
+
+
+def test_cascade_stage_is_the_matrix_product_of_its_residual():
+    """One stage, delta = R e + b with e the residual at the start, against numpy's float64 product of the
+    unquantised R: the int16 matrices and float32 sums move delta by about 1e-5 of its size."""
+    rng = np.random.default_rng(SEED + 5)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng)
+    D = 2 * len(vid)
+    free = np.array([4, 5, 6])
+    R = rng.normal(0, 2e-3, (1, 3, D)).astype(np.float32)
+    b = np.array([[0.01, -0.02, 0.0]])
+    mean = rng.normal(0, 1, D).astype(np.float32)
+    app = np.zeros((D, 0), np.float32)
+    lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
+    scratch = (np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D))
+    _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, 1, *scratch)
+    e = scratch[3].copy()
+    delta = R[0].astype(np.float64) @ e + b[0]
+    assert np.abs(delta).max() > 0.01  # the product moves the parameters
+    want = np.empty(7)
+    _compose(q, free, delta, 1.0, lo, hi, want)
+    p = q.copy()
+    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, *quantise_rows(R), b, mean, app, vid, bary, 1,
+             *scratch, np.empty(3))
+    assert np.abs(p - want).max() < 1e-4 * np.abs(want - q).max()  # of the move: int16 weights, float32 sums
 
 
 def test_search_reaches_a_known_minimum():
@@ -234,8 +260,8 @@ def test_cascade_leaves_pinned_parameters():
     lo, hi = np.full(7, -np.inf), np.full(7, np.inf)
     lo[6] = hi[6] = q[6]  # the coefficient is held
     p = q.copy()
-    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, R, b, np.zeros(D, np.float32), np.zeros((D, 0), np.float32),
-             vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D), np.empty(3))
+    _cascade(image, 1.0, 0.0, shape3d, basis, p, free, lo, hi, *quantise_rows(R), b, np.zeros(D, np.float32),
+             np.zeros((D, 0), np.float32), vid, bary, 1, np.empty((4, 2)), np.empty(D, np.float32), np.empty(0), np.empty(D), np.empty(3))
     assert p[6] == q[6] and not np.allclose(p[4:6], q[4:6])  # held stays, the rest moved
 
 

@@ -179,10 +179,13 @@ class LandmarkCascade:
     rank: the compiled ``run`` applies each stage's regressor as its best rank-``rank`` approximation
     (``factorise``; 0: the full one), made at first use, not stored in the model file (which keeps the full
     regressors). A regressor's 136 outputs move 68 points, which mostly move together: the shipped models keep 99%
-    of each regressor's squared norm in 46-68 dimensions. Rank 64 reads under half the weights of the full
-    product, which a tracked frame reads six times from memory. Measured 2026-11-28 (3D, shipped model, no
-    retraining, ``benchmarks/accuracy.py``): helen_test mean NME 0.0339 full / 0.0339 rank 96 / 0.0339 rank 64 /
-    0.0341 rank 48 / 0.0349 rank 32, cap12 against dlib 0.0275 / 0.0275 / 0.0276 / 0.0278 / 0.0284."""
+    of each regressor's squared norm in 46-68 dimensions. Rank 80 reads 59% of the weights of the full product,
+    which a tracked frame reads six times from memory. Measured 2026-11-28 (3D, shipped model, no retraining,
+    ``benchmarks/accuracy.py``): helen_test mean NME 0.0339 full / 0.0339 rank 96 / 0.0339 rank 64 / 0.0341 rank
+    48 / 0.0349 rank 32, cap12 against dlib 0.0275 / 0.0275 / 0.0276 / 0.0278 / 0.0284; ``benchmarks/hard_clips.py``
+    as at full rank from rank 80 up, but at 64 hard2's false detection (frame 215, pre-existing) was followed by
+    five wrong frames accepted as dim tracked ones (confidence 0.21-0.35 against 0.09-0.21 at full rank: NME
+    0.0399 -> 0.0595)."""
 
     ref: np.ndarray
     spec: DescriptorSpec
@@ -193,7 +196,7 @@ class LandmarkCascade:
     biases: np.ndarray
     shape_regressors: np.ndarray
     repeats: int = 0
-    rank: int = 64
+    rank: int = 80
 
     @property
     def n_stages(self) -> int:

@@ -149,8 +149,8 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
 
 
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, quantised, scales,
-                     expand, biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int, floor: float,
-                     feat, shape, prior, repeats: int = 0) -> np.ndarray:
+                     expand, biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int,
+                     floor: float, feat, shape, prior, repeats: int = 0) -> np.ndarray:
     """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
     float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``, the last stage
     ``repeats`` more times; the stages' regressors of rank r as ``LandmarkCascade.quantised`` gives them (quantised

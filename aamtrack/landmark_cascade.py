@@ -245,9 +245,10 @@ class LandmarkCascade:
         x = np.array(pts, dtype=np.float64)
         k = slice(first, None)
         prior = np.empty_like(x)
+        Q, s, Ut = self.quantised
         z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
-                             self.basis_mean[k], self.basis[k], self.quantised[0][k], self.quantised[1][k],
-                             self.quantised[2][k], self.biases[k], self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
+                             self.basis_mean[k], self.basis[k], Q[k], s[k], Ut[k], self.biases[k],
+                             self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
                              prior=prior, repeats=self.repeats if repeats is None else repeats)

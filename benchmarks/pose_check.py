@@ -5,9 +5,21 @@ same rasteriser) is fitted by the 3D model as a still (Haar detection + ``Tracke
 and the image becomes the mesh's texture at that fit. The textured mesh is then rendered at known poses
 (yaw, pitch, roll; with and without an expression) into a noise (or plain) background by a painter's
 rasteriser: triangles sorted back to front by depth, back faces culled, each one an affine warp of its source
-triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears (no hair, ears, neck or shoulders),
-and texture hidden or foreshortened in the source photo is stretched: the renders are easier than real heads
-in that the background is plain, and harder in that the face's edge is a hard cut.
+triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears, with a band around its jaw
+(``--band``, below; no ears or shoulders), and texture hidden or foreshortened in the source photo is
+stretched: the renders are easier than real heads in that the background is plain, and harder in that the
+head's edge is a hard cut.
+
+The band: Candide's mesh ends inside the face, about a tenth of the face width inside the labelled jaw line, so
+a render of the mesh alone puts the 17 jaw landmarks' truth on the background, past the drawn face's edge, and a
+landmark detector reads the jaw at that edge instead (sample clip's tracker on frontal renders of two faces: jaw
+points 4.6 px above their truth on average, 0.07 px with the band). ``--band B`` draws, with the mesh, a strip
+out to a ring of vertices each jaw landmark pushed B of its distance from the landmarks' centroid away from it
+(``aamtrack.mesh.skirt.with_skirt``, the model's own texture band, here round the whole jaw 0-16): the photo's
+surroundings of the jaw (neck, hair, background) beyond it. 0 renders the mesh alone (the check before
+2026-11-28). The figures depend on B by about a degree (video geodesic median, 2 faces, axes grid: 4.1 / 5.2 /
+5.6 degrees at B = 0.12 / 0.25 / 0.4, 6.5 at 0): B = 0.25 was chosen before those were measured, for a jaw
+line well inside the drawn head.
 
 Measurements per pose (the first two are the check; the third is a diagnostic):
 - still: one ``Searcher.fit`` from the true position and scale but a frontal pose (rotation 0, animation
@@ -41,6 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine_name, write_json  # noqa: E402
 
 from aamtrack.mesh.render import orient_triangles, posed, render_mesh  # noqa: E402
+from aamtrack.mesh.skirt import with_skirt  # noqa: E402
 
 TARGET_MEDIAN_DEG = 2.0  # goal: median angle error <= 2 degrees over the pose grid
 TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
@@ -50,6 +63,7 @@ ROLLS = (-30, 0, 30)
 EXPRESSION = {"jaw_drop": 0.5, "lip_stretcher": 0.5}
 CANVAS = 360  # rendered frames are CANVAS x CANVAS
 FACE_WIDTH_PX = 160.0  # frontal width of the mean mesh in the renders
+BAND = 0.25  # the drawn head reaches this share beyond the jaw landmarks (module docstring; 0: the mesh alone)
 
 
 # -- geometry -----------------------------------------------------------------------------------------------
@@ -92,13 +106,18 @@ class TexturedFace:
     """One source photo fitted by the model: ``render(q)`` draws the textured mesh at q = [rx, ry, rz, s, tx,
     ty, anim coefficients] (the person's fitted shape units held)."""
 
-    def __init__(self, model, image: np.ndarray, fit_p: np.ndarray, fit_vertices: np.ndarray, name: str):
-        self.sm = model.shape
+    def __init__(self, model, image: np.ndarray, fit_p: np.ndarray, name: str, *, band: float = BAND):
+        sm = model.shape
         self.image, self.name = image, name
-        self.sigma = fit_p[self.sm.n_q:].copy()
+        self.sigma = fit_p[sm.n_q:].copy()
         self.src_p = fit_p.copy()
-        self.src_uv = fit_vertices.copy()
-        self.triangles = orient_triangles(self.sm.triangles, self.sm.mean)
+        triangles = sm.triangles
+        if band > 0:  # the ring's vertices come after the model's, so the model's landmark map still applies
+            sm, strip = with_skirt(sm, sm.triangles, band, tuple(range(17)))
+            triangles = np.vstack([triangles, strip])
+        self.sm = sm
+        self.src_uv = self.view(fit_p[:model.shape.n_q])[0]  # where each vertex sits in the photo: the fit's projection
+        self.triangles = orient_triangles(triangles, sm.mean)
 
     def view(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return posed(self.sm.shape3d(q, self.sigma), q)
@@ -108,7 +127,8 @@ class TexturedFace:
         return render_mesh(self.image, self.src_uv, uv, z, self.triangles, background)[0]
 
 
-def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0, max_nme: float = 0.06) -> list:
+def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0, max_nme: float = 0.06,
+                 band: float = BAND) -> list:
     """The first ``n_faces`` photos of ``data`` (sorted by name) that the model fits confidently, near
     frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme)."""
     from aamtrack.io.dataset import find_pairs, load_pair
@@ -129,7 +149,7 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
         if (res.confidence < tracker.config.min_confidence or np.degrees(np.abs(res.p[:3])).max() > max_angle_deg
                 or float(nme(res.landmarks, pts)) > max_nme):
             continue
-        out.append(TexturedFace(model, img, res.p, res.vertices, img_path.name))
+        out.append(TexturedFace(model, img, res.p, img_path.name, band=band))
         if len(out) == n_faces:
             break
     return out
@@ -160,7 +180,7 @@ def true_q(model, face: TexturedFace, pose_deg, expression: bool, t: float = 1.0
 
 
 def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int, drift_frames: int,
-        background: str, limit: int | None, seed: int = 0, progress=print) -> dict:
+        background: str, limit: int | None, seed: int = 0, band: float = BAND, progress=print) -> dict:
     from aamtrack.imaging import to_gray32
     from aamtrack.model import load_model
     from aamtrack.search import Searcher
@@ -174,7 +194,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
             raise SystemExit(f"{model_path}: no animation unit {name!r} for the expression")
     searcher = Searcher(model)
     rng = np.random.default_rng(seed)
-    faces = source_faces(model, data, n_faces)
+    faces = source_faces(model, data, n_faces, band=band)
     if not faces:
         raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     poses = pose_grid(grid)[:limit]
@@ -222,7 +242,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                       "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0,
                       "last_frame_geodesic": err1,
                       "pitch_yaw_roll_deg": rot.tolist()})
-    return {"model": str(model_path), "machine": machine_name(), "grid": grid, "poses": len(poses),
+    return {"model": str(model_path), "machine": machine_name(), "grid": grid, "band": band, "poses": len(poses),
             "faces": [f.name for f in faces], "n_frames": n_frames, "background": background, "rows": rows,
             "summary": summarise(rows), "bias": bias_by_angle(rows), "drift": drift}
 
@@ -288,19 +308,24 @@ def main(argv=None) -> int:
     ap.add_argument("--drift-frames", type=int, default=100)
     ap.add_argument("--background", choices=("noise", "plain"), default="noise")
     ap.add_argument("--limit", type=int, help="first N poses of the grid only")
+    ap.add_argument("--band", type=float, default=BAND,
+                    help=f"the drawn head reaches this share beyond the jaw line (default {BAND}; 0: the mesh alone)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
+    if not 0 <= args.band <= 1:
+        ap.error(f"--band {args.band}: between 0 and 1")
     from aamtrack.errors import AamtrackError
 
     try:
         report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
                      drift_frames=args.drift_frames, background=args.background, limit=args.limit,
-                     progress=lambda s: print(s, file=sys.stderr))
+                     band=args.band, progress=lambda s: print(s, file=sys.stderr))
     except AamtrackError as e:  # unreadable model or data: one line, no traceback
         print(f"pose_check: {e}", file=sys.stderr)
         return 2
     print(f"model {report['model']}, {report['poses']} poses ({report['grid']} grid) x {len(report['faces'])} faces "
-          f"({', '.join(report['faces'])}), {report['background']} background; machine: {report['machine']}")
+          f"({', '.join(report['faces'])}), {report['background']} background, band {report['band']:g}; "
+          f"machine: {report['machine']}")
     print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")
     print(table(report))
     if args.json:

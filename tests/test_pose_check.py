@@ -218,3 +218,35 @@ def test_real_photo_rolled_matches_opencv_rotation():
     core = cv2.erode(drawn.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     assert core.sum() > 1000
     assert np.abs(img[core].astype(float) - expect[core]).mean() < 1.0  # grey levels
+
+
+def test_the_band_draws_the_head_past_its_jaw_line():
+    """pose_check's renders: Candide's mesh alone ends inside the labelled jaw line, so a frontal render of it
+    puts the jaw landmarks' truth on the background; with the band (``BAND``) every jaw landmark lies on the
+    drawn head, at least 2 px inside its edge, frontal, pitched, rolled and turned by up to 30 degrees. The band
+    leaves the mesh's own vertices where they were."""
+    from pose_check import BAND, CANVAS, TexturedFace, true_q
+
+    from aamtrack.model import load_model
+    from aamtrack.models import default_model_path
+
+    model = load_model(default_model_path("3d"))
+    sm = model.shape
+    photo = np.random.default_rng(SEED).integers(60, 200, (CANVAS, CANVAS, 3), dtype=np.uint8)
+    bg = np.zeros((CANVAS, CANVAS, 3), np.uint8)
+    for band, inside in ((0.0, False), (BAND, True)):
+        fit_p = np.r_[true_q(model, None, (0, 0, 0), False), np.zeros(sm.n_shape)]
+        face = TexturedFace(model, photo, fit_p, "noise", band=band)
+        assert np.allclose(face.src_uv[:sm.n_vertices], posed(sm.shape3d(fit_p[:sm.n_q], None), fit_p)[0])
+        # (turned further, the far side's jaw points are the head's silhouette itself, as in photos)
+        for pose in ((0, 0, 0), (0, 15, 0), (-30, 0, 0), (30, 0, 0), (0, 0, 30), (15, 30, 30)):
+            q = true_q(model, None, pose, False)
+            uv, z = face.view(q)
+            _, drawn = render(photo, face.src_uv, uv, z, face.triangles, bg)
+            core = cv2.erode(drawn.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+            jaw = np.round(sm.landmark_map[:17] @ uv[:sm.n_vertices]).astype(int)
+            on = core[jaw[:, 1], jaw[:, 0]]
+            if inside:
+                assert on.all()
+            elif pose == (0, 0, 0):  # turned, the mesh alone covers some of the far side's jaw points
+                assert not on.any()

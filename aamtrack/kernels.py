@@ -180,13 +180,19 @@ def landmark_residuals_jacobian(x, free_pose, n_coef: int, fit_sigma: bool, sigm
 
 
 def landmark_gauss_newton_step(x, free_pose, n_coef: int, sigma_fixed, LM, LS, LA, points, width: float,
-                               lam_c: float, damping: float, lo, hi) -> None:
-    """x (in place) <- one damped Gauss-Newton step of the landmark fit, sigma held
+                               lam_c: float, damping: float, lo, hi, *, fit_sigma: bool = False,
+                               lam_s: float = 0.0, shape_sd=None) -> None:
+    """x (in place) <- one damped Gauss-Newton step of the landmark fit, sigma held at ``sigma_fixed`` or, with
+    ``fit_sigma``, fitted too (x's last entries; prior weight ``lam_s``, scales ``shape_sd``)
     (``aamtrack._kernels.landmark_fit._gauss_newton_step``)."""
-    _lf._gauss_newton_step(_out(x, F64, 1, "x"), _in(free_pose, I64, 1, "free_pose"), int(n_coef),
+    if fit_sigma and (shape_sd is None or len(shape_sd) != len(sigma_fixed)):
+        raise ValueError("fit_sigma needs shape_sd, one per shape unit")
+    sd = np.ones(len(sigma_fixed)) if shape_sd is None else shape_sd
+    _lf._gauss_newton_step(_out(x, F64, 1, "x"), _in(free_pose, I64, 1, "free_pose"), int(n_coef), bool(fit_sigma),
                            _in(sigma_fixed, F64, 1, "sigma_fixed"), _in(LM, F64, 2, "LM"), _in(LS, F64, 3, "LS"),
                            _in(LA, F64, 3, "LA"), _in(points, F64, 2, "points"), float(width), float(lam_c),
-                           float(damping), _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"))
+                           float(lam_s), _in(sd, F64, 1, "shape_sd"), float(damping), _in(lo, F64, 1, "lo"),
+                           _in(hi, F64, 1, "hi"))
 
 
 def face_sharpness(image, scale: float, pts, pad: int, k1, k2) -> float:

@@ -83,7 +83,8 @@ def test_pose_of_an_unchanging_face_stays_put():
     person's shape units are being estimated (``TrackerConfig.sigma_frames``) each tracked search starts them at
     the median of the estimates so far (``sigma_restart``); started from the previous frame's fit instead, pose
     and shape walked together along what the 2D points cannot tell apart (pitch range over frames 20-59 of
-    these frames: 4.3 / 3.6 / 4.3 degrees when written, 0.3 / 1.5 / 1.1 with the restart)."""
+    these frames: 4.3 / 3.6 / 4.3 degrees when written, 0.3 / 1.5 / 1.1 with the restart, 0.3 / 0.8 / 0.7 with
+    the estimates from landmark fits too, ``sigma_from_landmarks``)."""
     from aamtrack.track.replay import ReplayFrame
 
     model = load_model(default_model_path("3d"))

@@ -106,14 +106,17 @@ def _landmark_rj(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, 
 
 
 @numba.njit(**NJIT)
-def _gauss_newton_step(x, free_pose, n_c, sigma_fixed, LM, LS, LA, points, width, lam_c, damping, lo, hi):
-    """x (in place) <- one damped Gauss-Newton step of the fit with sigma held at ``sigma_fixed``: solve
-    (J^T J + damping diag(J^T J)) d = J^T r, x - d clipped to [lo, hi]."""
+def _gauss_newton_step(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s, shape_sd,
+                       damping, lo, hi):
+    """x (in place) <- one damped Gauss-Newton step of the fit, sigma fitted too (the last entries of x, with its
+    prior) if ``fit_sigma``, else held at ``sigma_fixed``: solve (J^T J + damping diag(J^T J)) d = J^T r, x - d
+    clipped to [lo, hi]."""
     L = LM.shape[0]
     n = x.shape[0]
-    r = np.empty(2 * L + n_c)
-    J = np.empty((2 * L + n_c, n))
-    _landmark_rj(x, free_pose, n_c, False, sigma_fixed, LM, LS, LA, points, width, lam_c, 0.0, sigma_fixed, r, J,
+    n_r = 2 * L + n_c + (LS.shape[0] if fit_sigma else 0)
+    r = np.empty(n_r)
+    J = np.empty((n_r, n))
+    _landmark_rj(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s, shape_sd, r, J,
                  True)
     A = J.T @ J
     g = J.T @ r

@@ -55,30 +55,41 @@ class LandmarkFitter:
         self._hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:]]
         self._free = np.array(pose, np.int64)
         self._scale_at = pose.index(3)  # where the log-scale sits in the fit's unknowns
+        self._sd = np.ascontiguousarray(sm.shape_sd, float) if sm.n_shape else np.ones(0)
 
-    def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3) -> np.ndarray:
+    def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3, *,
+              fit_sigma: bool = False) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped
-        Gauss-Newton steps (Levenberg's diagonal, ``damping``) of the landmark fit to points (68, 2), sigma held,
-        the coefficients kept in their bounds (compiled: ``kernels.landmark_gauss_newton_step``). One step from
+        Gauss-Newton steps (Levenberg's diagonal, ``damping``) of the landmark fit to points (68, 2), sigma held
+        (or, with ``fit_sigma``, fitted too, within 3 standard deviations, with its prior ``LAMBDA_SHAPE``), the
+        coefficients kept in their bounds (compiled: ``kernels.landmark_gauss_newton_step``). One step from
         the previous frame's fit is what the tracker takes (``TrackerConfig.tracked_start``): close to the fit's
         minimum already, and about 0.02 ms."""
         sm = self.sm
         n_q, pose = sm.n_q, self._free
+        fit_sigma = fit_sigma and sm.n_shape > 0
         p = np.asarray(p, float)
         sigma = np.ascontiguousarray(p[n_q:])
         points = np.asarray(points, float)
         xs = points[:, 0]
         x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
+        lo, hi = self._lo, self._hi
+        if fit_sigma:
+            x = np.concatenate((x, sigma))
+            lo, hi = np.r_[lo, -3 * sm.shape_sd], np.r_[hi, 3 * sm.shape_sd]
         i_scale = self._scale_at
         x[i_scale] = np.log(max(float(p[3]), 1e-12))
         width = float(xs.max() - xs.min()) + 1e-9
         for _ in range(iterations):
             landmark_gauss_newton_step(x, pose, sm.n_coef, sigma, self.LM, self.LS, self.LA, points,
-                                       width, LAMBDA_COEF, damping, self._lo, self._hi)
+                                       width, LAMBDA_COEF, damping, lo, hi, fit_sigma=fit_sigma,
+                                       lam_s=LAMBDA_SHAPE, shape_sd=self._sd)
         out = p.copy()  # as ``unpack`` then copying its pose and coefficients into p, in fewer numpy calls
         out[pose] = x[:len(pose)]
         out[3] = np.exp(x[i_scale])
-        out[N_POSE:n_q] = x[len(pose):]
+        out[N_POSE:n_q] = x[len(pose):len(pose) + sm.n_coef]
+        if fit_sigma:
+            out[n_q:] = x[len(pose) + sm.n_coef:]
         return out
 
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):

@@ -79,6 +79,18 @@ class TrackerConfig:
     mirrored copy of its face either way); pose check video geodesic median / p95 7.04 / 13.05 -> 6.45 / 11.52
     (with expression 7.04 / 9.06 -> 6.80 / 9.60). Restarting at 0 instead of the median measured better on cap12
     (0.0251) and worse on dim_small (93.5% tracked, under the 95% bar) and hard2 (0.0455).
+    sigma_from_landmarks: each of those estimates is the landmark fit's shape units (``Tracker.shape_sample``:
+    pose, coefficients and shape units fitted to the fit's final 68 points, as the poster's sigma learning fits
+    annotated points), not the texture search's; a dim face's fit gives the search's (its points follow the
+    noise: with them too, robustness dim_small 96.0% / 0.0316 -> 95.3% / 0.0333, hard2 0.0388 -> 0.0430).
+    Measured when added (2026-11-28, with ``sigma_restart``, against the search's estimates): cap12 against dlib
+    0.0264 -> 0.0257 (the 2D model: 0.0260), MediaPipe's 11 points 0.0271 -> 0.0274; robustness video rows all
+    pass, clean 0.0249 -> 0.0242, mirror 0.0252 -> 0.0244, the others -0.0007 to +0.0003 (overexposed 0.0238 ->
+    0.0241; dim_small the same: its fits are dim); hard clips the same but hard5 0.0278 -> 0.0287, hard7 0.0286
+    -> 0.0268; still_shots 94.3% / 0.0394 / 62 above 0.10 -> 94.3% / 0.0386 / 58; pose check (band 0.25) video
+    geodesic median / p95 5.19 / 7.44 -> 4.54 / 7.12. Fitted to the points less the landmark cascade's shape
+    term's move (as ``landmark_start``): pose 3.84 / 7.65 but cap12 0.0271. Three steps reach scipy's
+    least-squares answer (a test); about 0.2 ms, on the first ``sigma_frames`` confident frames only.
     skip_coarse: a detection's second search (``refine_detection``) skips this many of the coarsest couples (they
     give the capture range the first search needs).
     skip_coarse_tracked: frames tracked from the previous frame skip this many of the coarsest couples
@@ -184,6 +196,7 @@ class TrackerConfig:
     sigma_frames: int = 50
     sigma_min_confidence: float = 0.9
     sigma_restart: bool = True
+    sigma_from_landmarks: bool = True
     skip_coarse: int = 1
     skip_coarse_tracked: int | None = None
     coarser_below: float = 0.99
@@ -432,6 +445,16 @@ class Tracker:
             return self.realign(res)
         return res.p
 
+    def shape_sample(self, res: FitResult) -> np.ndarray:
+        """One estimate of the person's shape units from the accepted fit res (``TrackerConfig.sigma_frames``):
+        with ``sigma_from_landmarks``, the landmark fit's (pose, coefficients and shape units: three Gauss-Newton
+        steps from res.p, ``LandmarkFitter.refit``) to the fit's final 68 points; else, or for a dim face's fit
+        (whose points follow the noise), the search's own."""
+        n_q = self.model.shape.n_q
+        if self.config.sigma_from_landmarks and not res.dim:
+            return self._landmark_fitter.refit(res.p, res.landmarks, 3, fit_sigma=True)[n_q:]
+        return res.p[n_q:].copy()
+
     def landmark_start(self, res: FitResult) -> np.ndarray:
         """res.p moved by one Gauss-Newton step of the landmark fit (``mesh.landmark_fit.LandmarkFitter.refit``:
         pose and coefficients, the shape units held) onto the fit's final landmarks, less what the landmark
@@ -677,7 +700,7 @@ class Tracker:
                 continue
             recent = (res.p, n_fitted)
             if estimate and shape_params is None and res.confidence >= cfg.sigma_min_confidence:
-                sigma_samples.append(res.p[n_q:].copy())
+                sigma_samples.append(self.shape_sample(res))
                 if len(sigma_samples) >= cfg.sigma_frames:
                     shape_params = np.median(sigma_samples, axis=0)
             p_prev = p if status == "tracked" else None

@@ -118,3 +118,65 @@ def test_compiled_step_is_the_numpy_gauss_newton_step(kind, synth_model, synth_m
     want, _ = unpack(x1, sm, pose, False, sigma)
     assert np.abs(got[:sm.n_q] - want).max() < 1e-9
     assert np.array_equal(got[sm.n_q:], sigma)
+
+
+def test_compiled_step_fits_the_shape_units_too(synth_model3d):
+    """``LandmarkFitter.refit(fit_sigma=True)``: one step equals the numpy step of the fit with the shape units
+    among the unknowns (their prior rows included), clipped to the coefficients' bounds and +-3 sd."""
+    sm = synth_model3d[0].shape
+    rng = np.random.default_rng(5)
+    pose, x, points, sigma = _case(sm, rng, True)
+    q, s0 = unpack(x, sm, pose, True, sigma)
+    got = LandmarkFitter(sm).refit(np.r_[q, s0], points, damping=1e-3, fit_sigma=True)
+    res_n, jac_n = reference_problem(sm, points, pose, True, sigma)
+    J = jac_n(x)
+    A = J.T @ J
+    A[np.diag_indices_from(A)] *= 1.001
+    A[np.diag_indices_from(A)] += 1e-12
+    lo_q, hi_q = sm.bounds()
+    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:], -3 * sm.shape_sd]
+    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:], 3 * sm.shape_sd]
+    x1 = np.clip(x - np.linalg.solve(A, J.T @ res_n(x)), lo, hi)
+    want_q, want_sigma = unpack(x1, sm, pose, True, sigma)
+    assert np.abs(got[:sm.n_q] - want_q).max() < 1e-9
+    assert np.abs(got[sm.n_q:] - want_sigma).max() < 1e-9
+
+
+def test_three_steps_reach_the_least_squares_shape_fit(synth_model3d):
+    """From near the answer (the tracker's case: the search's fit of the same frame), three steps with the shape
+    units free reach scipy's least-squares fit (``train.shape_fit.fit_landmarks``) of noisy points of a known
+    face: the same pose to 0.01 degrees and coefficients and shape units to 1e-3 (relative to their scales;
+    scipy stops at its own tolerance, about 0.002 degrees here), at a cost no higher than scipy's."""
+    from aamtrack.train.shape_fit import fit_landmarks
+
+    sm = synth_model3d[0].shape
+    rng = np.random.default_rng(6)
+    fitter = LandmarkFitter(sm)
+    for _ in range(3):
+        q = np.zeros(sm.n_q)
+        q[:3] = rng.normal(0, 0.15, 3)
+        q[3], q[4:6] = 150.0 / sm.frontal_width(), (200.0, 180.0)
+        q[N_POSE:] = rng.uniform(0.0, 0.3, sm.n_coef)
+        sigma = rng.normal(0, 1, sm.n_shape) * sm.shape_sd
+        points = sm.landmarks(q, sigma) + rng.normal(0, 1.0, (68, 2))  # 1 px of noise on a face 150 px wide
+        want = fit_landmarks(sm, points, shape_params=np.zeros(sm.n_shape), q0=q)
+        start = np.r_[q, np.zeros(sm.n_shape)]
+        start[:3] += np.radians([2.0, -2.0, 1.0])
+        start[4:6] += (1.0, -1.0)
+        got = fitter.refit(start, points, 3, fit_sigma=True)
+        assert np.degrees(np.abs(got[:3] - want.q[:3])).max() < 0.01  # degrees
+        assert np.abs(got[3:6] - want.q[3:6]).max() < 1e-3 * max(1.0, abs(want.q[3]))
+        assert np.abs(got[N_POSE:sm.n_q] - want.q[N_POSE:]).max() < 1e-3
+        assert np.abs((got[sm.n_q:] - want.shape_params) / sm.shape_sd).max() < 1e-3
+        residuals, _ = fitter.problem(points, free_pose(sm), True, np.zeros(sm.n_shape))
+        cost = [float(np.sum(residuals(_unknowns(sm, q_, s_)) ** 2))
+                for q_, s_ in ((got[:sm.n_q], got[sm.n_q:]), (want.q, want.shape_params))]
+        assert cost[0] <= cost[1] * (1 + 1e-6)  # as low as scipy's
+
+
+def _unknowns(sm, q, sigma):
+    """The fit's x for (q, sigma) with the shape units free (``unpack``'s inverse)."""
+    pose = free_pose(sm)
+    x = np.r_[q[pose], q[N_POSE:], sigma]
+    x[pose.index(3)] = np.log(q[3])
+    return x

@@ -569,15 +569,19 @@ def test_a_low_confidence_tracked_frame_is_searched_again_with_the_middle_couple
     faces, _, _, _ = synth3d.posed_faces(candide, 6, rng, yaw_sd=0.0, pitch_sd=0.0)
     frames = [faces[0], np.roll(faces[0], 2, axis=1)]  # a detection, then the face moved by 2 px
     runs = {}
+    # (without the detection's landmark pass, a tracked frame's search with other couples: the three runs' first
+    # frames, and so their second frames' starts, are then the same)
     for below in (0.0, 1.01):
-        cfg = TrackerConfig(coarser_below=below, cut_below=0.0)
+        cfg = TrackerConfig(coarser_below=below, cut_below=0.0, landmark_pass=False)
         runs[below] = list(Tracker(model3d, config=cfg).track(synth_frame(i, f) for i, f in enumerate(frames)))
     off, on = runs[0.0], runs[1.01]
     assert off[0].status == on[0].status == "detected" and off[1].status == on[1].status == "tracked"
     assert np.array_equal(off[0].landmarks, on[0].landmarks)  # detections do not use the rule
     assert on[1].confidence >= off[1].confidence
-    both = list(Tracker(model3d, config=TrackerConfig(skip_coarse_tracked=1, coarser_below=0.0, cut_below=0.0))
+    both = list(Tracker(model3d, config=TrackerConfig(skip_coarse_tracked=1, coarser_below=0.0, cut_below=0.0,
+                                                      landmark_pass=False))
                 .track(synth_frame(i, f) for i, f in enumerate(frames)))
+    assert np.array_equal(both[0].landmarks, on[0].landmarks)
     print(f"finest only {off[1].confidence:.6f}, two couples {both[1].confidence:.6f}, rule on {on[1].confidence:.6f}")
     assert off[1].confidence != both[1].confidence  # the premise: the two searches differ here
     assert on[1].confidence == max(off[1].confidence, both[1].confidence)  # the more confident of the two searches
@@ -611,7 +615,10 @@ def test_a_dim_tracked_frame_is_searched_again_with_the_middle_couple_whatever_i
     for name, model, skip in (("dim", replace(model3d, dim_validator=own, dim_below=1e3), None),
                               ("clear", replace(model3d, dim_validator=own, dim_below=0.0), None),
                               ("both", replace(model3d, dim_validator=own, dim_below=0.0), 1)):
-        tracker = Spy(model, config=TrackerConfig(coarser_below=0.0, cut_below=0.0, skip_coarse_tracked=skip))
+        # (sigma_frames=0: the shape units searched in every frame, so no estimate, which a dim face's fit makes
+        # otherwise than a clear one's, sets the tracked frame's start)
+        tracker = Spy(model, config=TrackerConfig(coarser_below=0.0, cut_below=0.0, skip_coarse_tracked=skip,
+                                                  sigma_frames=0))
         tracker.firsts = []
         runs[name] = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
         firsts[name] = tracker.firsts

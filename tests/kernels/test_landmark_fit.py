@@ -95,6 +95,20 @@ def test_compiled_fit_matches_the_numpy_reference(kind, fit_sigma, synth_model, 
             assert np.abs(fd - J[:, a]).max() < 1e-6 * max(1.0, np.abs(J[:, a]).max())
 
 
+def numpy_step(sm, points, pose, x, sigma, fit_sigma, damping=1e-3):
+    """One damped Gauss-Newton step in numpy: (J^T J + damping diag) d = J^T r, x - d clipped to the
+    coefficients' bounds (and +-3 sd for the shape units when fitted); (q, sigma) after it."""
+    res_n, jac_n = reference_problem(sm, points, pose, fit_sigma, sigma)
+    J = jac_n(x)
+    A = J.T @ J
+    A[np.diag_indices_from(A)] *= 1.0 + damping
+    A[np.diag_indices_from(A)] += 1e-12
+    lo_q, hi_q = sm.bounds()
+    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:], -3 * sm.shape_sd if fit_sigma else []]
+    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:], 3 * sm.shape_sd if fit_sigma else []]
+    return unpack(np.clip(x - np.linalg.solve(A, J.T @ res_n(x)), lo, hi), sm, pose, fit_sigma, sigma)
+
+
 @pytest.mark.parametrize("kind", ["2d", "3d"])
 def test_compiled_step_is_the_numpy_gauss_newton_step(kind, synth_model, synth_model3d):
     """``LandmarkFitter.refit``: one step equals (J^T J + damping diag) d = J^T r solved in numpy, clipped to the
@@ -102,20 +116,9 @@ def test_compiled_step_is_the_numpy_gauss_newton_step(kind, synth_model, synth_m
     sm = (synth_model if kind == "2d" else synth_model3d[0]).shape
     rng = np.random.default_rng(4)
     pose, x, points, sigma = _case(sm, rng, False)
-    fitter = LandmarkFitter(sm)
     q, _ = unpack(x, sm, pose, False, sigma)
-    p = np.r_[q, sigma]
-    got = fitter.refit(p, points, damping=1e-3)
-    res_n, jac_n = reference_problem(sm, points, pose, False, sigma)
-    J = jac_n(x)
-    A = J.T @ J
-    A[np.diag_indices_from(A)] *= 1.001
-    A[np.diag_indices_from(A)] += 1e-12
-    lo_q, hi_q = sm.bounds()
-    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:]]
-    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:]]
-    x1 = np.clip(x - np.linalg.solve(A, J.T @ res_n(x)), lo, hi)
-    want, _ = unpack(x1, sm, pose, False, sigma)
+    got = LandmarkFitter(sm).refit(np.r_[q, sigma], points, damping=1e-3)
+    want, _ = numpy_step(sm, points, pose, x, sigma, False)
     assert np.abs(got[:sm.n_q] - want).max() < 1e-9
     assert np.array_equal(got[sm.n_q:], sigma)
 
@@ -128,16 +131,7 @@ def test_compiled_step_fits_the_shape_units_too(synth_model3d):
     pose, x, points, sigma = _case(sm, rng, True)
     q, s0 = unpack(x, sm, pose, True, sigma)
     got = LandmarkFitter(sm).refit(np.r_[q, s0], points, damping=1e-3, fit_sigma=True)
-    res_n, jac_n = reference_problem(sm, points, pose, True, sigma)
-    J = jac_n(x)
-    A = J.T @ J
-    A[np.diag_indices_from(A)] *= 1.001
-    A[np.diag_indices_from(A)] += 1e-12
-    lo_q, hi_q = sm.bounds()
-    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:], -3 * sm.shape_sd]
-    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:], 3 * sm.shape_sd]
-    x1 = np.clip(x - np.linalg.solve(A, J.T @ res_n(x)), lo, hi)
-    want_q, want_sigma = unpack(x1, sm, pose, True, sigma)
+    want_q, want_sigma = numpy_step(sm, points, pose, x, sigma, True)
     assert np.abs(got[:sm.n_q] - want_q).max() < 1e-9
     assert np.abs(got[sm.n_q:] - want_sigma).max() < 1e-9
 

@@ -17,6 +17,7 @@ from .shape_model import N_POSE, ShapeModel
 
 LAMBDA_SHAPE = 1e-3
 LAMBDA_COEF = 1e-4
+SIGMA_BOUND_SD = 3.0  # fitted shape units stay within this many of their standard deviations
 
 
 def free_pose(sm: ShapeModel) -> list:
@@ -56,12 +57,14 @@ class LandmarkFitter:
         self._free = np.array(pose, np.int64)
         self._scale_at = pose.index(3)  # where the log-scale sits in the fit's unknowns
         self._sd = np.ascontiguousarray(sm.shape_sd, float) if sm.n_shape else np.ones(0)
+        self._lo_sigma = np.r_[self._lo, -SIGMA_BOUND_SD * self._sd]  # the bounds with the shape units fitted too
+        self._hi_sigma = np.r_[self._hi, SIGMA_BOUND_SD * self._sd]
 
     def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3, *,
               fit_sigma: bool = False) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped
         Gauss-Newton steps (Levenberg's diagonal, ``damping``) of the landmark fit to points (68, 2), sigma held
-        (or, with ``fit_sigma``, fitted too, within 3 standard deviations, with its prior ``LAMBDA_SHAPE``), the
+        (or, with ``fit_sigma``, fitted too, within ``SIGMA_BOUND_SD``, with its prior ``LAMBDA_SHAPE``), the
         coefficients kept in their bounds (compiled: ``kernels.landmark_gauss_newton_step``). One step from
         the previous frame's fit is what the tracker takes (``TrackerConfig.tracked_start``): close to the fit's
         minimum already, and about 0.02 ms."""
@@ -73,10 +76,9 @@ class LandmarkFitter:
         points = np.asarray(points, float)
         xs = points[:, 0]
         x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
-        lo, hi = self._lo, self._hi
+        lo, hi = (self._lo_sigma, self._hi_sigma) if fit_sigma else (self._lo, self._hi)
         if fit_sigma:
             x = np.concatenate((x, sigma))
-            lo, hi = np.r_[lo, -3 * sm.shape_sd], np.r_[hi, 3 * sm.shape_sd]
         i_scale = self._scale_at
         x[i_scale] = np.log(max(float(p[3]), 1e-12))
         width = float(xs.max() - xs.min()) + 1e-9

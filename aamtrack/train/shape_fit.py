@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh.landmark_fit import free_pose as _free_pose, landmark_problem, unpack
+from ..mesh.landmark_fit import SIGMA_BOUND_SD, free_pose as _free_pose, landmark_problem, unpack
 from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
 
 
@@ -50,8 +50,8 @@ def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarra
     hi = np.r_[np.full(n_p, np.inf), hi_q[N_POSE:]]
     lo[free_pose.index(3)], hi[free_pose.index(3)] = -np.inf, np.inf
     if fit_sigma:
-        lo = np.r_[lo, -3 * sm.shape_sd]
-        hi = np.r_[hi, 3 * sm.shape_sd]
+        lo = np.r_[lo, -SIGMA_BOUND_SD * sm.shape_sd]
+        hi = np.r_[hi, SIGMA_BOUND_SD * sm.shape_sd]
     best = None
     for q_start in starts:
         x0 = np.r_[q_start[free_pose], q_start[N_POSE:]]

@@ -65,6 +65,7 @@ ROLLS = (-30, 0, 30)
 EXPRESSION = {"jaw_drop": 0.5, "lip_stretcher": 0.5}
 CANVAS = 360  # rendered frames are CANVAS x CANVAS
 FACE_WIDTH_PX = 160.0  # frontal width of the mean mesh in the renders
+METHODS = ("fit", "still", "video", "from_truth")  # the measurements per pose (module docstring)
 BAND = 0.25  # the drawn head reaches this share beyond the jaw landmarks (module docstring; 0: the mesh alone)
 
 
@@ -195,6 +196,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
         if name not in sm.coef_names:
             raise SystemExit(f"{model_path}: no animation unit {name!r} for the expression")
     searcher = Searcher(model)
+    tracker = Tracker(model)  # (a track's state lives in its generator: one tracker serves every fit and video)
     rng = np.random.default_rng(seed)
     faces = source_faces(model, data, n_faces, band=band)
     if not faces:
@@ -214,7 +216,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                 row = {"face": face.name, "expression": expression, "pitch": pose[0], "yaw": pose[1],
                        "roll": pose[2], "still": angle_errors(res.p, q), "still_confidence": res.confidence,
                        "still_estimate_deg": np.degrees(res.p[:3]).tolist()}
-                fit = Tracker(model).fit_still(ReplayFrame(0, 0.0, img), mirror=False)
+                fit = tracker.fit_still(ReplayFrame(0, 0.0, img), mirror=False)
                 row["fit"] = angle_errors(fit.rotation, q) if fit.success else None
                 row["fit_estimate_deg"] = np.degrees(fit.rotation).tolist()
                 # diagnostic: start at the truth, the person's shape units pinned: where the search's fixed point is
@@ -224,7 +226,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                 ts = 0.5 - 0.5 * np.cos(np.pi * np.linspace(0, 1, n_frames))  # smoothstep 0 -> 1
                 frames = [ReplayFrame(i, i / 25.0, face.render(true_q(model, face, pose, expression, t), bg))
                           for i, t in enumerate(ts)]
-                results = list(Tracker(model).track(frames))
+                results = list(tracker.track(frames))
                 last = results[-1]
                 row["video_status"] = last.status
                 row["video_lost_frames"] = sum(not r.success for r in results)
@@ -237,7 +239,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
     for face in faces:
         q = true_q(model, face, (0, 0, 0), False)
         img = face.render(q, make_background(background, rng))
-        results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, img) for i in range(drift_frames)))
+        results = list(tracker.track(ReplayFrame(i, i / 25.0, img) for i in range(drift_frames)))
         ok = [r for r in results if r.success]
         rot = np.degrees(np.array([r.rotation for r in ok])) if ok else np.zeros((0, 3))
         d = np.abs(rot - rot[0]).max(0) if ok else np.full(3, np.nan)
@@ -255,7 +257,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
 def summarise(rows: list[dict]) -> list[dict]:
     """Median and p95 of each error per (method, expression), over the grid and faces."""
     out = []
-    for method in ("fit", "still", "video", "from_truth"):
+    for method in METHODS:
         for expression in (False, True):
             sel = [r for r in rows if r["expression"] == expression]
             errs = [r[method] for r in sel if r[method] is not None]
@@ -277,7 +279,7 @@ def bias_by_angle(rows: list[dict]) -> list[dict]:
         for v in sorted({r[axis] for r in rows}):
             sel = [r for r in rows if r[axis] == v]
             s = {"axis": axis, "true": v, "n": len(sel)}
-            for method in ("fit", "still", "video", "from_truth"):
+            for method in METHODS:
                 d = [r[f"{method}_estimate_deg"][k] - v for r in sel if r[method] is not None]
                 s[method] = float(np.median(d)) if d else float("nan")
             out.append(s)

@@ -247,13 +247,22 @@ def _worker_task(task: dict) -> dict:
 
 
 def _pool_context():
-    """Worker processes are forked where the platform can (Linux): they inherit the imported modules and the
-    parent's warmed-up tracker, so a worker starts in milliseconds instead of seconds of imports and numba cache
-    loads. The pool forks all its workers at the first submit, before this module starts any thread."""
+    """Worker processes are forked where the platform can (Linux) and the process has no other thread: they
+    inherit the imported modules and the parent's warmed-up tracker, so a worker starts in milliseconds instead of
+    seconds of imports and numba cache loads. The pool forks all its workers at the first submit, before this
+    module starts any thread. A fork copies only the forking thread: a lock another thread held at that moment (a
+    program calling ``run_batch`` while its own threads use OpenCV) stays held in the child for ever, and the
+    worker hung in its first OpenCV call (once in CI's run of the test that does this). With other threads alive
+    the workers start from a fork server instead: a fresh process that imports this module once and forks them."""
     methods = multiprocessing.get_all_start_methods()
-    for method in ("fork", "forkserver", "spawn"):
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    for method in ("forkserver", "spawn"):
         if method in methods:
-            return multiprocessing.get_context(method)
+            ctx = multiprocessing.get_context(method)
+            if method == "forkserver":  # (takes effect when the server starts: the first such pool in a process)
+                ctx.set_forkserver_preload([__name__])
+            return ctx
     return multiprocessing.get_context()  # pragma: no cover
 
 

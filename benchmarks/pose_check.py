@@ -1,12 +1,18 @@
 """Head pose on synthetic renders of a textured face at known poses (the 3D model's pose check).
 
 A real face (a helen_test image: held out from training, whose face profiling turns helen_train faces by the
-same rasteriser) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``)
-and the image becomes the mesh's texture at that fit. The textured mesh is then rendered at known poses
-(yaw, pitch, roll; with and without an expression) into a noise (or plain) background by a painter's
-rasteriser: triangles sorted back to front by depth, back faces culled, each one an affine warp of its source
-triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears, with a band around its jaw
-(``--band``, below; no ears or shoulders), and texture hidden or foreshortened in the source photo is
+same rasteriser) is fitted by the 3D model as a still (Haar detection + ``Tracker.fit_roi``), which picks the
+near-frontal faces the model fits well, and the image becomes the mesh's texture (``--source``): by default
+("warped") at the model's landmark fit to the photo's human labels (pose, animation units, shape units), the
+photo's pixels moved by a thin-plate spline that takes each labelled point onto its fitted landmark, so the
+render's 68 labelled features lie on the truth's landmarks (within a pixel, tests/test_pose_check.py) and the
+pose error is the tracker's own; "labels": at that landmark fit, not moved (the features lie off the truth by
+the fit's residual: 1.3 / 3.4 px on average on the first two faces, markers drawn at the labels); "search": at
+the search's own fit (3.0 / 3.8 px; the check before the twenty-ninth session). The textured mesh is then
+rendered at known poses (yaw, pitch, roll; with and without an expression) into a noise (or plain) background
+by a painter's rasteriser: triangles sorted back to front by depth, back faces culled, each one an affine warp
+of its source triangle (cv2.warpAffine + a triangle mask). Only the mesh region appears, with a band around its
+jaw (``--band``, below; no ears or shoulders), and texture hidden or foreshortened in the source photo is
 stretched: the renders are easier than real heads in that the background is plain, and harder in that the
 head's edge is a hard cut.
 
@@ -66,6 +72,7 @@ EXPRESSION = {"jaw_drop": 0.5, "lip_stretcher": 0.5}
 CANVAS = 360  # rendered frames are CANVAS x CANVAS
 FACE_WIDTH_PX = 160.0  # frontal width of the mean mesh in the renders
 METHODS = ("fit", "still", "video", "from_truth")  # the measurements per pose (module docstring)
+LABEL_FIT_STEPS = 30  # Gauss-Newton steps of the texture's landmark fit to the labels (``source_faces``)
 BAND = 0.25  # the drawn head reaches this share beyond the jaw landmarks (module docstring; 0: the mesh alone)
 
 
@@ -109,7 +116,8 @@ class TexturedFace:
     """One source photo fitted by the model: ``render(q)`` draws the textured mesh at q = [rx, ry, rz, s, tx,
     ty, anim coefficients] (the person's fitted shape units held)."""
 
-    def __init__(self, model, image: np.ndarray, fit_p: np.ndarray, name: str, *, band: float = BAND):
+    def __init__(self, model, image: np.ndarray, fit_p: np.ndarray, name: str, *, band: float = BAND,
+                 points: np.ndarray | None = None):
         sm = model.shape
         self.image, self.name = image, name
         self.sigma = fit_p[sm.n_q:].copy()
@@ -120,6 +128,12 @@ class TexturedFace:
             triangles = np.vstack([triangles, strip])
         self.sm = sm
         self.src_uv = self.view(fit_p[:model.shape.n_q])[0]  # where each vertex sits in the photo: the fit's projection
+        if points is not None:  # moved so the photo's labelled points fall on the model's landmarks (``source_faces``)
+            from scipy.interpolate import RBFInterpolator
+
+            fitted = model.shape.landmarks(fit_p[:model.shape.n_q], self.sigma)
+            move = RBFInterpolator(fitted, np.asarray(points, float) - fitted, kernel="thin_plate_spline")
+            self.src_uv = self.src_uv + move(self.src_uv)
         self.triangles = orient_triangles(triangles, sm.mean)
 
     def view(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,11 +145,15 @@ class TexturedFace:
 
 
 def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0, max_nme: float = 0.06,
-                 band: float = BAND) -> list:
+                 band: float = BAND, source: str = "warped") -> list:
     """The first ``n_faces`` photos of ``data`` (sorted by name) that the model fits confidently, near
-    frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme)."""
+    frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme). The texture is
+    taken at ``source`` (module docstring): "warped", the model's landmark fit (pose, coefficients, shape units)
+    to the photo's human labels with the photo moved so the labels fall on the fitted landmarks; "labels", that
+    fit alone; "search", the search's own fit (the check before the twenty-ninth session, 2026-11-28)."""
     from aamtrack.io.dataset import find_pairs, load_pair
-    from aamtrack.metrics import nme
+    from aamtrack.mesh.landmark_fit import LandmarkFitter
+    from aamtrack.metrics import PIXEL_ORIGIN, nme
     from aamtrack.track.tracker import Tracker
 
     tracker = Tracker(model)
@@ -152,7 +170,11 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
         if (res.confidence < tracker.config.min_confidence or np.degrees(np.abs(res.p[:3])).max() > max_angle_deg
                 or float(nme(res.landmarks, pts)) > max_nme):
             continue
-        out.append(TexturedFace(model, img, res.p, img_path.name, band=band))
+        p, labels = res.p, pts - PIXEL_ORIGIN  # (the labels in OpenCV's pixels, as the model works)
+        if source != "search":
+            p = LandmarkFitter(model.shape).refit(p, labels, LABEL_FIT_STEPS, fit_sigma=True)
+        out.append(TexturedFace(model, img, p, img_path.name, band=band,
+                                points=labels if source == "warped" else None))
         if len(out) == n_faces:
             break
     return out
@@ -183,7 +205,8 @@ def true_q(model, face: TexturedFace, pose_deg, expression: bool, t: float = 1.0
 
 
 def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int, drift_frames: int,
-        background: str, limit: int | None, seed: int = 0, band: float = BAND, progress=print) -> dict:
+        background: str, limit: int | None, seed: int = 0, band: float = BAND, source: str = "warped",
+        progress=print) -> dict:
     from aamtrack.imaging import to_gray32
     from aamtrack.model import load_model
     from aamtrack.search import Searcher
@@ -198,7 +221,7 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
     searcher = Searcher(model)
     tracker = Tracker(model)  # (a track's state lives in its generator: one tracker serves every fit and video)
     rng = np.random.default_rng(seed)
-    faces = source_faces(model, data, n_faces, band=band)
+    faces = source_faces(model, data, n_faces, band=band, source=source)
     if not faces:
         raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     poses = pose_grid(grid)[:limit]
@@ -249,7 +272,8 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
                       "yaw_drift": float(d[1]), "roll_drift": float(d[2]), "first_frame_geodesic": err0,
                       "last_frame_geodesic": err1,
                       "pitch_yaw_roll_deg": rot.tolist()})
-    return {"model": str(model_path), "machine": machine_name(), "grid": grid, "band": band, "poses": len(poses),
+    return {"model": str(model_path), "machine": machine_name(), "grid": grid, "band": band, "source": source,
+            "poses": len(poses),
             "faces": [f.name for f in faces], "n_frames": n_frames, "background": background, "rows": rows,
             "summary": summarise(rows), "bias": bias_by_angle(rows), "drift": drift}
 
@@ -318,6 +342,9 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, help="first N poses of the grid only")
     ap.add_argument("--band", type=float, default=BAND,
                     help=f"the drawn head reaches this share beyond the jaw line (default {BAND}; 0: the mesh alone)")
+    ap.add_argument("--source", choices=("warped", "labels", "search"), default="warped",
+                    help="the texture: warped so the photo's labelled points sit on the model's landmarks (default), "
+                         "at the model's landmark fit to the labels, or at the search's own fit")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     if not 0 <= args.band <= 1:
@@ -327,7 +354,7 @@ def main(argv=None) -> int:
     try:
         report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
                      drift_frames=args.drift_frames, background=args.background, limit=args.limit,
-                     band=args.band, progress=lambda s: print(s, file=sys.stderr))
+                     band=args.band, source=args.source, progress=lambda s: print(s, file=sys.stderr))
     except AamtrackError as e:  # unreadable model or data: one line, no traceback
         print(f"pose_check: {e}", file=sys.stderr)
         return 2

@@ -390,7 +390,7 @@ class ImageFrames(FrameSource):
                 break
         if first is None:
             raise InputError(f"{name}: none of the {len(self.paths)} image files could be read")
-        self._first = (k, first)
+        self._first = (k, first)  # (the files before it could not be read: not read, nor warned of, again)
         super().__init__(name=name, fps=fps, n_frames=len(self.paths), width=first.shape[1],
                          height=first.shape[0], resize=resize)
         logger.info("%s: %s", name, self)
@@ -405,7 +405,9 @@ class ImageFrames(FrameSource):
         for index, path in enumerate(self.paths):
             if self._closed:
                 return
-            if self._first is not None and self._first[0] == index:
+            if self._first is not None and index < self._first[0]:
+                image = None
+            elif self._first is not None and self._first[0] == index:
                 image, self._first = self._first[1], None
             else:
                 image = read_image(path)

@@ -122,13 +122,15 @@ def test_corrupt_image_in_folder_yields_none(tmp_path):
     assert [decode_index(f.image) for f in frames if f.image is not None] == [0, 1, 2, 5]
 
 
-def test_first_images_corrupt_still_sized_from_a_readable_one(tmp_path):
+def test_first_images_corrupt_still_sized_from_a_readable_one(tmp_path, caplog):
     rng = np.random.default_rng(SEED)
     _write_pngs(tmp_path, ["a1.png", "a2.png"], rng)
     (tmp_path / "a0.png").write_bytes(b"garbage")
     with open_frames(tmp_path) as source:
         assert (source.width, source.height) == (WIDTH, HEIGHT)
         assert [f.image is None for f in source] == [True, False, False]
+    warned = [r.getMessage() for r in caplog.records if "cannot decode" in r.getMessage()]
+    assert len(warned) == 1 and warned[0].endswith("a0.png: cannot decode image")  # once, not again for its frame
 
 
 def test_gray():

@@ -402,15 +402,25 @@ def _soft_couples(c: _Checker, specs, couples: tuple, textures: tuple, n_params:
     return soft
 
 
+ZIP_MAGIC = b"PK\x03\x04"  # how an .npz (a zip archive) starts
+NPY_MAGIC = b"\x93NUMPY"  # how a bare .npy array starts
+
+
 def load_model(path: str | Path) -> Model:
     """Read and check a model file; raises ModelFileError naming the file and what is wrong."""
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file")
     try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(NPY_MAGIC))
+        if not head:
+            raise ModelFileError(f"{path}: empty file, not an aamtrack model")
+        if head == NPY_MAGIC:
+            raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
+        if not head.startswith(ZIP_MAGIC):  # (numpy would take it for a pickle and say that)
+            raise ModelFileError(f"{path}: not an aamtrack model (not an .npz archive)")
         with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:  # our handle: closed on a bad zip too
-            if not hasattr(z, "files"):
-                raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
             if "meta" not in z.files:
                 raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")
             c = _Checker(path, z)

@@ -125,14 +125,24 @@ def test_unknown_version_is_rejected(tmp_path, synth_model):
         load_model(tmp_path / "future.npz")
 
 
-@pytest.mark.parametrize("content,message", [(b"not a zip at all", "not a readable aamtrack model"),
-                                             (None, "no such model file")])
+@pytest.mark.parametrize("content,message", [
+    (b"not a zip at all", r"bad.npz: not an aamtrack model \(not an .npz archive\)$"),
+    (b"", "bad.npz: empty file, not an aamtrack model$"),
+    (None, "no such model file")])
 def test_corrupt_or_missing(tmp_path, content, message):
+    """(A file that is not a zip archive at all is said to be so, not what numpy makes of it: it would try it
+    as a pickle and say how to load pickles.)"""
     p = tmp_path / "bad.npz"
     if content is not None:
         p.write_bytes(content)
     with pytest.raises(ModelFileError, match=message):
         load_model(p)
+
+
+def test_bare_array_file(tmp_path):
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    with pytest.raises(ModelFileError, match=r"not an aamtrack model \(a bare array, not an .npz archive\)$"):
+        load_model(tmp_path / "array.npy")
 
 
 def test_npz_without_meta(tmp_path):

@@ -47,9 +47,17 @@ class LandmarkFitter:
     """A shape model's landmarks in the form the fit needs, computed once: L M, L S and L A (the landmark map
     applied to the mean, the shape units and the animation units or PCA modes)."""
 
-    def __init__(self, sm: ShapeModel):
+    def __init__(self, sm: ShapeModel, points=None):
+        """``points``: the landmarks (indices into the 68) the fit uses (default all); ``refit`` still takes all 68
+        points and picks these."""
         self.sm = sm
         self.LM, self.LS, self.LA = sm.landmark_arrays
+        self._use = None
+        if points is not None:
+            self._use = np.asarray(points, np.int64)
+            self.LM = np.ascontiguousarray(self.LM[self._use])
+            self.LS = np.ascontiguousarray(self.LS[:, self._use])
+            self.LA = np.ascontiguousarray(self.LA[:, self._use])
         lo_q, hi_q = sm.bounds()
         pose = free_pose(sm)
         self._lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:]]
@@ -74,6 +82,8 @@ class LandmarkFitter:
         p = np.asarray(p, float)
         sigma = np.ascontiguousarray(p[n_q:])
         points = np.asarray(points, float)
+        if self._use is not None:
+            points = np.ascontiguousarray(points[self._use])
         xs = points[:, 0]
         x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
         lo, hi = (self._lo_sigma, self._hi_sigma) if fit_sigma else (self._lo, self._hi)
@@ -99,6 +109,8 @@ class LandmarkFitter:
         compiled ``kernels.landmark_residuals_jacobian``."""
         sm = self.sm
         points = np.asarray(points, float)
+        if self._use is not None:
+            points = np.ascontiguousarray(points[self._use])
         width = float(np.ptp(points[:, 0]) + 1e-9)
         pose = np.asarray(free_pose, np.int64)
         sigma_fixed = np.asarray(sigma_fixed, float)

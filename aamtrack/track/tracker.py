@@ -91,6 +91,20 @@ class TrackerConfig:
     geodesic median / p95 5.19 / 7.44 -> 4.54 / 7.12. Fitted to the points less the landmark cascade's shape
     term's move (as ``landmark_start``): pose 3.84 / 7.65 but cap12 0.0271. Three steps reach scipy's
     least-squares answer (a test); about 0.2 ms, on the first ``sigma_frames`` confident frames only.
+    pose_from_points: a 3D fit's reported pose (rotation, translation, scale: the CSV's pose columns, the overlay's
+    axes) is that of a landmark fit (``Tracker.reported_pose``: two Gauss-Newton steps from the search's fit, the
+    shape units held) to the final points without the 17 jaw points, rather than the texture search's own. The
+    jaw points are the tracker's least accurate (helen_test stills, 3D: NME 0.060 on them against 0.016 on the
+    eyes), and Candide's are fixed points of the mesh, where a turned face's far jaw line is its silhouette: the
+    search's pose, and a fit to all 68 points, read a head's turn short. Measured when added (2026-11-28,
+    ``benchmarks/pose_check.py --grid axes``, textures warped onto the labels), geodesic median / p95: 4 faces,
+    still fits (``fit_still``) 4.82 / 13.05 -> 4.84 / 9.47 (with expression 5.07 / 15.95 -> 4.97 / 11.24), video
+    4.43 / 7.82 -> 4.62 / 7.84 (3.91 / 7.66 -> 4.08 / 7.63): the turned stills' error falls, video is about the
+    same (pitch better, yaw worse: median 3.74 -> 3.04, 1.65 -> 2.32); the first 2 faces alone: fit 5.04 / 12.73
+    -> 4.74 / 8.51, video 5.55 / 8.50 -> 4.70 / 7.84; from all 68 points instead: fit 7.23 / 15.14, video 6.81 /
+    12.82. On cap12 the pose moves less from frame to frame (median change of pitch 0.22 -> 0.16 degrees, yaw 0.18
+    -> 0.14) and reads the head 7 degrees less pitched (mean -23.9 -> -16.5 degrees; no truth there). The mesh,
+    3D landmarks and animation units stay the search's; the points are the same.
     skip_coarse: a detection's second search (``refine_detection``) skips this many of the coarsest couples (they
     give the capture range the first search needs).
     skip_coarse_tracked: frames tracked from the previous frame skip this many of the coarsest couples
@@ -197,6 +211,7 @@ class TrackerConfig:
     sigma_min_confidence: float = 0.9
     sigma_restart: bool = True
     sigma_from_landmarks: bool = True
+    pose_from_points: bool = True
     skip_coarse: int = 1
     skip_coarse_tracked: int | None = None
     coarser_below: float = 0.99
@@ -222,6 +237,9 @@ class TrackerConfig:
             raise ValueError(f"tracked_start {self.tracked_start!r}: one of {', '.join(TRACKED_STARTS)}")
 
 
+N_JAW = 17  # iBUG-68's jaw line: points 0-16 (``TrackerConfig.pose_from_points``)
+
+
 class Tracker:
     """Detection, frame-to-frame search, validation and re-detection for one model (see module docstring)."""
 
@@ -233,6 +251,7 @@ class Tracker:
         self.detector = detector or HaarDetector()
         self.mm_per_unit = model.shape.mm_per_unit()
         self._landmark_fitter = LandmarkFitter(model.shape)
+        self._pose_fitter = LandmarkFitter(model.shape, points=np.arange(N_JAW, 68))  # (``reported_pose``)
         skip = config.skip_coarse_tracked
         skip = (2 if model.shape.kind == "3d" else 1) if skip is None else skip
         self.skip_tracked = max(0, min(skip, len(model.couples) - 1))  # the finest couple always searches
@@ -515,6 +534,14 @@ class Tracker:
         ok = (pts[:, 0] >= 0) & (pts[:, 0] < W) & (pts[:, 1] >= 0) & (pts[:, 1] < H)
         return float(ok.mean())
 
+    def reported_pose(self, res: FitResult) -> np.ndarray:
+        """The pose part q of res.p a frame's result reports: for a 3D model with ``pose_from_points``, a landmark
+        fit's (two Gauss-Newton steps from res.p, shape units held) to res.landmarks without the jaw's; else res's."""
+        n_q = self.model.shape.n_q
+        if not self.config.pose_from_points or self.model.shape.kind != "3d":
+            return res.p[:n_q]
+        return self._pose_fitter.refit(res.p, res.landmarks, 2)[:n_q]
+
     def _result(self, frame, status, res: FitResult | None, timings, reason: str = "") -> FrameResult:
         conf = 0.0 if res is None else res.confidence
         if res is None or status not in ("detected", "tracked"):
@@ -523,11 +550,12 @@ class Tracker:
         sm = self.model.shape
         q, sigma = res.p[:sm.n_q], res.p[sm.n_q:]
         is3d = sm.kind == "3d"
+        pose = self.reported_pose(res)
         o = PIXEL_ORIGIN  # the search works in OpenCV's pixels; results are in the package's 1-based ones
         return FrameResult(
             frame=frame.index, timestamp=frame.timestamp, status=status, confidence=conf,
             landmarks=res.landmarks + o, landmarks3d=sm.landmarks3d(q, sigma) * self.mm_per_unit if is3d else None,
-            rotation=q[:3].copy(), translation=q[4:6] + o, scale=float(q[3]),
+            rotation=pose[:3].copy(), translation=pose[4:6] + o, scale=float(pose[3]),
             anim_params=q[N_POSE:].copy() if is3d else np.zeros(0),
             shape_params=sigma.copy() if is3d else q[N_POSE:].copy(),
             vertices=res.vertices + o, timings=timings)

@@ -103,7 +103,10 @@ class TrackerConfig:
     same (pitch better, yaw worse: median 3.74 -> 3.04, 1.65 -> 2.32); the first 2 faces alone: fit 5.04 / 12.73
     -> 4.74 / 8.51, video 5.55 / 8.50 -> 4.70 / 7.84; from all 68 points instead: fit 7.23 / 15.14, video 6.81 /
     12.82. On cap12 the pose moves less from frame to frame (median change of pitch 0.22 -> 0.16 degrees, yaw 0.18
-    -> 0.14) and reads the head 7 degrees less pitched (mean -23.9 -> -16.5 degrees; no truth there). On dim
+    -> 0.14) and reads the head 7 degrees less pitched (mean -23.9 -> -16.5 degrees; no absolute truth there), and
+    its turns follow MediaPipe Face Mesh's 3D points more closely (each frame's rotation of their mean shape,
+    generalised Procrustes, deviations from the video's mean compared: RMS difference pitch / yaw / roll 3.92 /
+    1.92 / 0.72 -> 2.49 / 1.52 / 0.57 degrees, correlation of pitch 0.72 -> 0.86). On dim
     faces (``hard_clips.py`` hard2, hard4, hard6: every fit dim) it moves 10-25% more than the search's (the points
     follow the noise: pitch median 1.15 -> 1.39, 0.70 -> 0.88, 0.81 -> 1.05 degrees); dim fits are not left out,
     as the shape estimates leave them out, because a pose switching source with the dim flag would jump by the

@@ -547,7 +547,8 @@ class Tracker:
         n_q = self.model.shape.n_q
         if not self.config.pose_from_points or self.model.shape.kind != "3d":
             return res.p[:n_q]
-        return self._pose_fitter.refit(res.p, res.landmarks, 2)[:n_q]
+        q = self._pose_fitter.refit(res.p, res.landmarks, 2)[:n_q]
+        return q if np.isfinite(q).all() and q[3] > 0 else res.p[:n_q]  # (degenerate points: the search's)
 
     def _result(self, frame, status, res: FitResult | None, timings, reason: str = "") -> FrameResult:
         conf = 0.0 if res is None else res.confidence

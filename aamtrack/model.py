@@ -412,20 +412,21 @@ def load_model(path: str | Path) -> Model:
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file")
     try:
-        with open(path, "rb") as fh:
+        with open(path, "rb") as fh:  # our handle: closed on a bad zip too
             head = fh.read(len(NPY_MAGIC))
-        if not head:
-            raise ModelFileError(f"{path}: empty file, not an aamtrack model")
-        if head == NPY_MAGIC:
-            raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
-        if not head.startswith(ZIP_MAGIC):  # (numpy would take it for a pickle and say that)
-            raise ModelFileError(f"{path}: not an aamtrack model (not an .npz archive)")
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:  # our handle: closed on a bad zip too
-            if "meta" not in z.files:
-                raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")
-            c = _Checker(path, z)
-            meta = _meta(c)
-            return _read(c, meta)
+            if not head:
+                raise ModelFileError(f"{path}: empty file, not an aamtrack model")
+            if head == NPY_MAGIC:
+                raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
+            if not head.startswith(ZIP_MAGIC):  # (numpy would take it for a pickle and say that)
+                raise ModelFileError(f"{path}: not an aamtrack model (not an .npz archive)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                if "meta" not in z.files:
+                    raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")
+                c = _Checker(path, z)
+                meta = _meta(c)
+                return _read(c, meta)
     except ModelFileError:
         raise
     except (OSError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile, zlib.error, EOFError,

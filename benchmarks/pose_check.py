@@ -61,7 +61,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine_name, write_json  # noqa: E402
 
 from aamtrack.mesh.render import orient_triangles, posed, render_mesh  # noqa: E402
-from aamtrack.mesh.skirt import with_skirt  # noqa: E402
+from aamtrack.mesh.skirt import JAW, with_skirt  # noqa: E402
 
 TARGET_MEDIAN_DEG = 2.0  # goal: median angle error <= 2 degrees over the pose grid
 TARGET_P95_DEG = 5.0  # ... and p95 <= 5 degrees
@@ -124,7 +124,7 @@ class TexturedFace:
         self.src_p = fit_p.copy()
         triangles = sm.triangles
         if band > 0:  # the ring's vertices come after the model's, so the model's landmark map still applies
-            sm, strip = with_skirt(sm, sm.triangles, band, tuple(range(17)))
+            sm, strip = with_skirt(sm, sm.triangles, band, JAW)
             triangles = np.vstack([triangles, strip])
         self.sm = sm
         self.src_uv = self.view(fit_p[:model.shape.n_q])[0]  # where each vertex sits in the photo: the fit's projection
@@ -157,6 +157,7 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
     from aamtrack.track.tracker import Tracker
 
     tracker = Tracker(model)
+    fitter = LandmarkFitter(model.shape)
     out = []
     for img_path, pts_path in find_pairs(data):
         img, pts = load_pair(img_path, pts_path)
@@ -172,7 +173,7 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
             continue
         p, labels = res.p, pts - PIXEL_ORIGIN  # (the labels in OpenCV's pixels, as the model works)
         if source != "search":
-            p = LandmarkFitter(model.shape).refit(p, labels, LABEL_FIT_STEPS, fit_sigma=True)
+            p = fitter.refit(p, labels, LABEL_FIT_STEPS, fit_sigma=True)
         out.append(TexturedFace(model, img, p, img_path.name, band=band,
                                 points=labels if source == "warped" else None))
         if len(out) == n_faces:

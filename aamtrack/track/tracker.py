@@ -17,9 +17,11 @@ import numpy as np
 
 from ..detector import HaarDetector, guess_points, unturn
 from ..imaging import crop_gray32, thumbnail
+from ..io.pts import N_LANDMARKS
 from ..mesh.landmark_fit import LandmarkFitter
 from ..mesh.landmarks import mirror_points, similarity_fit
 from ..mesh.shape_model import N_POSE, initial_pose
+from ..mesh.skirt import JAW
 from ..metrics import PIXEL_ORIGIN, nme
 from ..model import Model
 from ..search import Searcher
@@ -244,9 +246,6 @@ class TrackerConfig:
             raise ValueError(f"tracked_start {self.tracked_start!r}: one of {', '.join(TRACKED_STARTS)}")
 
 
-N_JAW = 17  # iBUG-68's jaw line: points 0-16 (``TrackerConfig.pose_from_points``)
-
-
 class Tracker:
     """Detection, frame-to-frame search, validation and re-detection for one model (see module docstring)."""
 
@@ -258,7 +257,8 @@ class Tracker:
         self.detector = detector or HaarDetector()
         self.mm_per_unit = model.shape.mm_per_unit()
         self._landmark_fitter = LandmarkFitter(model.shape)
-        self._pose_fitter = LandmarkFitter(model.shape, points=np.arange(N_JAW, 68))  # (``reported_pose``)
+        # (``reported_pose``: the landmarks without the jaw line's)
+        self._pose_fitter = LandmarkFitter(model.shape, points=np.setdiff1d(np.arange(N_LANDMARKS), JAW))
         skip = config.skip_coarse_tracked
         skip = (2 if model.shape.kind == "3d" else 1) if skip is None else skip
         self.skip_tracked = max(0, min(skip, len(model.couples) - 1))  # the finest couple always searches

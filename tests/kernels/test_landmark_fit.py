@@ -4,7 +4,7 @@ its Jacobian against finite differences."""
 import numpy as np
 import pytest
 
-from aamtrack.mesh.landmark_fit import LAMBDA_COEF, LAMBDA_SHAPE, LandmarkFitter, free_pose, unpack
+from aamtrack.mesh.landmark_fit import LAMBDA_COEF, LAMBDA_SHAPE, SIGMA_BOUND_SD, LandmarkFitter, free_pose, unpack
 from aamtrack.mesh.shape_model import N_POSE, rotation_matrix
 
 
@@ -97,15 +97,15 @@ def test_compiled_fit_matches_the_numpy_reference(kind, fit_sigma, synth_model, 
 
 def numpy_step(sm, points, pose, x, sigma, fit_sigma, damping=1e-3):
     """One damped Gauss-Newton step in numpy: (J^T J + damping diag) d = J^T r, x - d clipped to the
-    coefficients' bounds (and +-3 sd for the shape units when fitted); (q, sigma) after it."""
+    coefficients' bounds (and +-``SIGMA_BOUND_SD`` sd for the shape units when fitted); (q, sigma) after it."""
     res_n, jac_n = reference_problem(sm, points, pose, fit_sigma, sigma)
     J = jac_n(x)
     A = J.T @ J
     A[np.diag_indices_from(A)] *= 1.0 + damping
     A[np.diag_indices_from(A)] += 1e-12
     lo_q, hi_q = sm.bounds()
-    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:], -3 * sm.shape_sd if fit_sigma else []]
-    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:], 3 * sm.shape_sd if fit_sigma else []]
+    lo = np.r_[np.full(len(pose), -np.inf), lo_q[N_POSE:], -SIGMA_BOUND_SD * sm.shape_sd if fit_sigma else []]
+    hi = np.r_[np.full(len(pose), np.inf), hi_q[N_POSE:], SIGMA_BOUND_SD * sm.shape_sd if fit_sigma else []]
     return unpack(np.clip(x - np.linalg.solve(A, J.T @ res_n(x)), lo, hi), sm, pose, fit_sigma, sigma)
 
 

@@ -10,6 +10,7 @@ write their outputs to the (shared) output folder themselves.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import glob
 import hashlib
@@ -266,60 +267,30 @@ def _pool_context():
     return multiprocessing.get_context()  # pragma: no cover
 
 
-def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
-    if jobs <= 1 or len(tasks) <= 1:
-        bar = make_bar()
-        try:
-            for k, task in enumerate(tasks):
-                on_row(k, run_task(task, on_frame=bar.update), bar)
-        finally:
-            bar.close()
-        return
+@contextlib.contextmanager
+def worker_pool(workers: int):
+    """A pool of ``workers`` worker processes (``_pool_context``, each set up by ``_init_worker``), all started
+    before this yields (pool, progress queue): threads the caller starts afterwards (a progress bar's) are never
+    forked. A worker process sends frame counts to the queue (``_worker_task``). On a failure or a stop signal in
+    the ``with`` block, the workers get SIGINT (on which a worker discards its temporaries, as a single run does;
+    Ctrl-C reaches them anyway, one process group) and the queued work is cancelled."""
     import cv2
 
     ctx = _pool_context()
     progress = ctx.Queue()
     quiet = os.environ.get("OPENCV_FFMPEG_LOGLEVEL") == "-8"
-    stop = threading.Event()
     # OpenCV's thread pool does not survive a fork: a worker forked while the parent's pool threads existed could
     # hang for ever in its first OpenCV call (cv2.setNumThreads in ``_init_worker``: seen once in a test run, and
     # every time when the pool was busy in another thread at the fork). With one thread OpenCV keeps no pool
     # threads, so none are forked; the parent only coordinates while the workers run, and gets its threads back.
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=_init_worker,
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
                                initargs=(progress, quiet))
-    pump = bar = None
     try:
-        pending = {pool.submit(_worker_task, t): k for k, t in enumerate(tasks)}
-        bar = make_bar()
-
-        def drain():
-            while not stop.is_set():
-                try:
-                    n = progress.get(timeout=0.2)
-                except Exception:  # noqa: BLE001 - queue.Empty, or the queue closed at the end
-                    continue
-                if n is None:  # the end (sent below): no waiting out the timeout
-                    return
-                bar.update(n)
-
-        pump = threading.Thread(target=drain, name="aamtrack-progress", daemon=True)
-        pump.start()
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                k = pending.pop(fut)
-                try:
-                    row = fut.result()
-                except KeyboardInterrupt:
-                    raise
-                except BaseException as exc:  # a worker that died (killed, out of memory)
-                    row = _row(tasks[k], "failed", error=f"worker process failed: {error_text(exc)}")
-                on_row(k, row, bar)
+        pool.submit(int).result()  # a forking pool starts all its workers at the first submit: now
+        yield pool, progress
     except BaseException as exc:
-        # Ctrl-C reaches the workers too (one process group); a stop signal or a failure here is passed on as
-        # SIGINT, on which a worker discards its temporaries, as a single run does
         if getattr(exc, "signum", None) is not None or not isinstance(exc, KeyboardInterrupt):
             for p in list((getattr(pool, "_processes", None) or {}).values()):
                 try:
@@ -329,15 +300,57 @@ def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     finally:
-        stop.set()
-        if pump is not None:
-            progress.put(None)
-            pump.join()
-        if bar is not None:
-            bar.close()
-        cv2.setNumThreads(threads)  # (the workers were all forked at the first submit)
+        cv2.setNumThreads(threads)
     pool.shutdown(wait=True)
     progress.close()
+
+
+def _run_local(tasks: list[dict], jobs: int, make_bar, on_row) -> None:
+    if jobs <= 1 or len(tasks) <= 1:
+        bar = make_bar()
+        try:
+            for k, task in enumerate(tasks):
+                on_row(k, run_task(task, on_frame=bar.update), bar)
+        finally:
+            bar.close()
+        return
+    stop = threading.Event()
+    with worker_pool(min(jobs, len(tasks))) as (pool, progress):
+        pump = bar = None
+        try:
+            pending = {pool.submit(_worker_task, t): k for k, t in enumerate(tasks)}
+            bar = make_bar()
+
+            def drain():
+                while not stop.is_set():
+                    try:
+                        n = progress.get(timeout=0.2)
+                    except Exception:  # noqa: BLE001 - queue.Empty, or the queue closed at the end
+                        continue
+                    if n is None:  # the end (sent below): no waiting out the timeout
+                        return
+                    bar.update(n)
+
+            pump = threading.Thread(target=drain, name="aamtrack-progress", daemon=True)
+            pump.start()
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    k = pending.pop(fut)
+                    try:
+                        row = fut.result()
+                    except KeyboardInterrupt:
+                        raise
+                    except BaseException as exc:  # a worker that died (killed, out of memory)
+                        row = _row(tasks[k], "failed", error=f"worker process failed: {error_text(exc)}")
+                    on_row(k, row, bar)
+        finally:
+            stop.set()
+            if pump is not None:
+                progress.put(None)
+                pump.join()
+            if bar is not None:
+                bar.close()
 
 
 # -- Dask ------------------------------------------------------------------------------------------------------------

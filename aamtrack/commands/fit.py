@@ -6,26 +6,33 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import deque
+from contextlib import contextmanager
+from collections.abc import Iterator
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from tqdm import tqdm
 
-from ..errors import InputError
+from ..errors import AamtrackError, InputError
 from ..io.atomic import OutputSet
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import ImageFrames, display_name, open_frames
+from ..io.frames import ImageFrames, display_name, open_frames, read_image
 from ..io.pts import write_pts
 from ..io.summary import write_summary_json
 from ..model import load_model
 from ..models import default_model_path
+from ..result import FrameResult
 from ..track.replay import ReplayFrame
 from ..track.tracker import Tracker
+from .batch import _tracker, default_jobs, worker_pool
 from .run import model_and_output_arguments, output_base, output_dir
 
 EXAMPLES = """examples:
   aamtrack fit photo.jpg
   aamtrack fit photos/ --out-dir fits --pts
-  aamtrack fit 'shots/*.png' --kind 2d"""
+  aamtrack fit 'shots/*.png' --kind 2d
+  aamtrack fit photos/ --jobs 1                 one image at a time, in this process"""
 
 
 def register(sub) -> None:
@@ -41,13 +48,63 @@ def register(sub) -> None:
                    "(<out-dir>/<name>_pts/<image stem>.pts)")
     p.add_argument("--no-mirror", action="store_true", help="fit each image once; by default the mirrored image "
                    "is fitted too and the two fits' points averaged (more accurate, twice the time)")
+    p.add_argument("--jobs", type=int, metavar="N",
+                   help="images fitted at once, in worker processes (default: the number of cores, "
+                        f"{default_jobs()} here); the outputs are the same for any N")
     p.set_defaults(func=run)
 
 
+def _fit_image(tracker: Tracker, index: int, path: Path, readable: bool, mirror: bool) -> FrameResult:
+    """Image ``index`` (the file ``path``) fitted on its own (``Tracker.fit_still``); a file that cannot be read
+    (read here unless ``readable`` is False: one of the files before the first readable one, warned of already
+    when the input was opened) gives its ``unreadable`` row."""
+    image = read_image(path) if readable else None
+    return tracker.fit_still(ReplayFrame(index, 0.0, image), mirror=mirror)
+
+
+def _worker_fit(model_path: str, index: int, path: Path, readable: bool, mirror: bool) -> FrameResult:
+    """``_fit_image`` in a worker process of ``--jobs N`` (its tracker made once per process, or inherited from
+    the parent when forked)."""
+    return _fit_image(_tracker(Path(model_path)), index, path, readable, mirror)
+
+
+@contextmanager
+def _fitting(tasks: list, tracker: Tracker, model_path: Path, jobs: int) -> Iterator[Iterator[FrameResult]]:
+    """The fits of ``tasks`` ((index, path, readable, mirror) each), in their order: in this process, or with
+    ``jobs`` > 1 in that many worker processes (``batch.worker_pool``: started on entering, before the caller
+    starts a progress bar's thread; stopped on a failure in the ``with`` block)."""
+    if jobs <= 1 or len(tasks) <= 1:
+        yield (_fit_image(tracker, *task) for task in tasks)
+        return
+    _tracker(model_path)  # made and warmed up here, before the workers are forked: they start with it
+    with worker_pool(min(jobs, len(tasks))) as (pool, _):
+        yield _in_order(pool, tasks, model_path, jobs)
+
+
+def _in_order(pool, tasks: list, model_path: Path, jobs: int) -> Iterator[FrameResult]:
+    """The workers' fits of ``tasks`` in their order, at most two per worker queued ahead (each worker reads its
+    own images)."""
+    ahead = deque()
+    for task in tasks:
+        ahead.append(pool.submit(_worker_fit, str(model_path), *task))
+        if len(ahead) >= 2 * jobs:
+            yield _worker_result(ahead.popleft())
+    while ahead:
+        yield _worker_result(ahead.popleft())
+
+
+def _worker_result(future) -> FrameResult:
+    try:
+        return future.result()
+    except BrokenProcessPool as exc:  # a worker killed (out of memory, a signal): the run stops, nothing written
+        raise AamtrackError(f"a worker process failed ({exc}); try fewer --jobs") from None
+
+
 def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = False, progress: bool = True,
-               mirror: bool = True) -> dict:
+               mirror: bool = True, jobs: int = 1) -> dict:
     """Fit each image of ``input_`` (``Tracker.fit_still``: with ``mirror``, the mirrored image too, the points
-    averaged) and write the outputs; returns the summary. The input and the output folder
+    averaged) and write the outputs; returns the summary. ``jobs`` > 1 fits that many images at once in worker
+    processes, with the same outputs (each image is fitted on its own). The input and the output folder
     are checked before the work, and all outputs are committed together at the end (``io.atomic.OutputSet``)."""
     t_start = time.perf_counter()
     source = open_frames(input_)
@@ -69,27 +126,29 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
         with TrackingCsvWriter(outputs.file(csv_path.name), anim_names=sm.coef_names if is3d else (),
                                shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d,
                                leading=("file",)) as csv_w:
-            for frame in tqdm(source, total=source.n_frames, unit="img", file=sys.stderr,
-                              disable=not progress or None, desc=display_name(stem)):
-                path = source.paths[frame.index]
-                res = tracker.fit_still(ReplayFrame(frame.index, 0.0, frame.image), mirror=mirror)
-                csv_w.write(res, leading=(display_name(path.name),))
-                counts["images"] += 1
-                if res.status == "unreadable":
-                    counts["unreadable"] += 1
-                elif res.success:
-                    counts["fitted"] += 1
-                    if pts_tmp is not None:
-                        write_pts(pts_tmp / f"{path.stem}.pts", res.landmarks)
-                elif "search" in res.timings:
-                    counts["rejected"] += 1
-                else:
-                    counts["no_face"] += 1
+            tasks = [(k, path, k >= source.first_readable, mirror) for k, path in enumerate(source.paths)]
+            with _fitting(tasks, tracker, model_path, jobs) as fits:
+                bar = tqdm(fits, total=len(tasks), unit="img", file=sys.stderr, disable=not progress or None,
+                           desc=display_name(stem))
+                for path, res in zip(source.paths, bar):
+                    csv_w.write(res, leading=(display_name(path.name),))
+                    counts["images"] += 1
+                    if res.status == "unreadable":
+                        counts["unreadable"] += 1
+                    elif res.success:
+                        counts["fitted"] += 1
+                        if pts_tmp is not None:
+                            write_pts(pts_tmp / f"{path.stem}.pts", res.landmarks)
+                    elif "search" in res.timings:
+                        counts["rejected"] += 1
+                    else:
+                        counts["no_face"] += 1
         if counts["fitted"] == 0:  # bad input: one line, nothing written
             which = f"any of its {counts['images']} images" if counts["images"] > 1 else "it"
             raise InputError(f"{display_name(input_)}: no face fitted in {which} ({counts['rejected']} rejected, "
                              f"{counts['no_face']} without a face found, {counts['unreadable']} unreadable)")
         summary = {"input": display_name(input_), "model": str(model_path), "model_kind": sm.kind, "mirror": mirror,
+                   "jobs": 1 if jobs <= 1 or len(tasks) <= 1 else min(jobs, len(tasks)),
                    **counts, "wall_s": time.perf_counter() - t_start,
                    "outputs": {"csv": str(csv_path), "summary": str(json_path),
                                **({"pts": str(folder / f"{stem}_pts")} if pts else {})}}
@@ -99,9 +158,11 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.jobs is not None and not 1 <= args.jobs <= 1024:
+        raise InputError(f"--jobs {args.jobs}: expected a number of worker processes, 1 or more")
     model_path = args.model or default_model_path(args.kind)
     s = fit_images(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir), pts=args.pts,
-                   mirror=not args.no_mirror)
+                   mirror=not args.no_mirror, jobs=args.jobs or default_jobs())
     print(f"{s['images']} images: {s['fitted']} fitted, {s['rejected']} rejected (low confidence), "
           f"{s['no_face']} without a face found, {s['unreadable']} unreadable -> "
           + ", ".join(display_name(v) for v in s["outputs"].values()))

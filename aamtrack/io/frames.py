@@ -375,7 +375,8 @@ class ImageFrames(FrameSource):
     """Frames from a list of image files, in the given order; an unreadable file gives ``image=None``.
 
     ``width``/``height`` are those of the first readable image; images of another size are delivered as they
-    are (with a warning) unless ``resize`` is given.
+    are (with a warning) unless ``resize`` is given. ``first_readable``: that image's index (the files before it
+    could not be read, and were warned of, when the source was opened).
     """
 
     def __init__(self, paths, *, name: str, fps: float | None = None, resize=None):
@@ -390,6 +391,7 @@ class ImageFrames(FrameSource):
                 break
         if first is None:
             raise InputError(f"{name}: none of the {len(self.paths)} image files could be read")
+        self.first_readable = k
         self._first = (k, first)  # (the files before it could not be read: not read, nor warned of, again)
         super().__init__(name=name, fps=fps, n_frames=len(self.paths), width=first.shape[1],
                          height=first.shape[0], resize=resize)

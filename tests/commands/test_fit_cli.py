@@ -93,3 +93,58 @@ def test_fit_no_mirror_fits_once(tmp_path, stills, model_file):
         assert np.linalg.norm(runs[True][k] - points[k], axis=1).mean() < 2.0  # within two pixels of the truth
         gap = np.linalg.norm(runs[True][k] - runs[False][k], axis=1)
         assert 0 < gap.max() < 1.0  # the mirrored fit's share moved them, a little
+
+
+def test_fit_jobs_gives_the_same_outputs(tmp_path, stills, model_file):
+    """``--jobs 2`` fits the images in two worker processes, each reading its own images: the CSV rows (in the
+    images' order) and the .pts files are the same bytes as one image at a time in this process."""
+    import json
+
+    folder, _ = stills
+    outs = {}
+    for jobs in (1, 2):
+        outs[jobs] = out = tmp_path / f"jobs{jobs}"
+        assert main(["fit", str(folder), "--model", str(model_file), "--out-dir", str(out), "--pts",
+                     "--jobs", str(jobs)]) == 0
+        assert json.loads((out / "stills.json").read_text())["jobs"] == jobs
+    assert (outs[1] / "stills.csv").read_bytes() == (outs[2] / "stills.csv").read_bytes()
+    names = sorted(p.name for p in (outs[1] / "stills_pts").iterdir())
+    assert names == sorted(p.name for p in (outs[2] / "stills_pts").iterdir()) and len(names) == 3
+    for name in names:
+        assert (outs[1] / "stills_pts" / name).read_bytes() == (outs[2] / "stills_pts" / name).read_bytes()
+
+
+def test_fit_bad_jobs_is_one_line(tmp_path, stills, model_file, capsys):
+    folder, _ = stills
+    out = tmp_path / "out"
+    assert main(["fit", str(folder), "--model", str(model_file), "--out-dir", str(out), "--jobs", "0"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--jobs 0" in err[0], err
+    assert not out.exists()
+
+
+def test_fit_worker_that_dies_stops_the_run_with_one_line(tmp_path, stills, model_file, capsys, monkeypatch):
+    """A worker process killed mid-run (here: it exits on the second image) stops ``aamtrack fit --jobs 2`` with
+    one line and exit 1, and nothing is written."""
+    import multiprocessing
+    import os
+
+    from aamtrack.commands import batch, fit
+
+    folder, _ = stills
+    real = fit._fit_image
+
+    def dying(tracker, index, path, readable, mirror):
+        if index == 1:
+            os._exit(3)  # as a process killed by the system would end
+        return real(tracker, index, path, readable, mirror)
+
+    monkeypatch.setattr(fit, "_fit_image", dying)
+    # forked workers run the patched function (the pool would start them from a fork server, which imports the
+    # module afresh, when this process has other threads: a previous test's progress-bar monitor)
+    monkeypatch.setattr(batch, "_pool_context", lambda: multiprocessing.get_context("fork"))
+    out = tmp_path / "out"
+    assert main(["fit", str(folder), "--model", str(model_file), "--out-dir", str(out), "--jobs", "2"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a worker process failed" in err[0], err
+    assert not out.exists()

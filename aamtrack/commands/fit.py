@@ -7,8 +7,8 @@ import argparse
 import sys
 import time
 from collections import deque
-from contextlib import contextmanager
 from collections.abc import Iterator
+from contextlib import contextmanager
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
@@ -77,8 +77,11 @@ def _fitting(tasks: list, tracker: Tracker, model_path: Path, jobs: int) -> Iter
         yield (_fit_image(tracker, *task) for task in tasks)
         return
     _tracker(model_path)  # made and warmed up here, before the workers are forked: they start with it
-    with worker_pool(min(jobs, len(tasks))) as (pool, _):
-        yield _in_order(pool, tasks, model_path, jobs)
+    try:
+        with worker_pool(min(jobs, len(tasks))) as (pool, _):
+            yield _in_order(pool, tasks, model_path, jobs)
+    except BrokenProcessPool as exc:  # a worker killed (out of memory, a signal): the run stops, nothing written
+        raise AamtrackError(f"a worker process failed ({exc}); try fewer --jobs") from None
 
 
 def _in_order(pool, tasks: list, model_path: Path, jobs: int) -> Iterator[FrameResult]:
@@ -88,16 +91,9 @@ def _in_order(pool, tasks: list, model_path: Path, jobs: int) -> Iterator[FrameR
     for task in tasks:
         ahead.append(pool.submit(_worker_fit, str(model_path), *task))
         if len(ahead) >= 2 * jobs:
-            yield _worker_result(ahead.popleft())
+            yield ahead.popleft().result()
     while ahead:
-        yield _worker_result(ahead.popleft())
-
-
-def _worker_result(future) -> FrameResult:
-    try:
-        return future.result()
-    except BrokenProcessPool as exc:  # a worker killed (out of memory, a signal): the run stops, nothing written
-        raise AamtrackError(f"a worker process failed ({exc}); try fewer --jobs") from None
+        yield ahead.popleft().result()
 
 
 def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = False, progress: bool = True,
@@ -127,9 +123,9 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
                                shape_names=sm.shape_names if is3d else sm.coef_names, with_3d=is3d,
                                leading=("file",)) as csv_w:
             tasks = [(k, path, k >= source.first_readable, mirror) for k, path in enumerate(source.paths)]
-            with _fitting(tasks, tracker, model_path, jobs) as fits:
-                bar = tqdm(fits, total=len(tasks), unit="img", file=sys.stderr, disable=not progress or None,
-                           desc=display_name(stem))
+            with (_fitting(tasks, tracker, model_path, jobs) as fits,
+                  tqdm(fits, total=len(tasks), unit="img", file=sys.stderr, disable=not progress or None,
+                       desc=display_name(stem)) as bar):
                 for path, res in zip(source.paths, bar):
                     csv_w.write(res, leading=(display_name(path.name),))
                     counts["images"] += 1

@@ -235,6 +235,14 @@ def equalize_clipped(gray: np.ndarray, clip: float = EQUALIZE_CLIP) -> np.ndarra
     return cv2.LUT(gray, lut)
 
 
+def mirrored(found: tuple, width: int) -> tuple:
+    """``HaarDetector.find``'s (box, angle) for the frame flipped left to right (``width`` pixels wide): the box
+    mirrored in its (turned) frame, the angle negated (a frame turned by a degrees and then flipped is the flipped
+    frame turned by -a, both about the centre)."""
+    (x, y, w, h), angle = found
+    return np.array([width - x - w, y, w, h], float), -float(angle)
+
+
 def unturn(points: np.ndarray, angle: float, shape: tuple) -> np.ndarray:
     """(n, 2) points of a frame turned by ``angle`` degrees about its centre (``HaarDetector.detect_all``),
     mapped back to the frame of ``shape`` (H, W[, C])."""

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from aamtrack.detector import HaarDetector, unturn
+from aamtrack.detector import HaarDetector, mirrored, overlap, unturn
 import synth
 
 
@@ -37,6 +37,45 @@ def test_rolled_face_is_found_in_a_turned_frame(face, roll):
     corners = np.array([[box[0], box[1]], [box[0] + box[2], box[1] + box[3]]])
     centre = unturn(corners, angle, rolled.shape).mean(0)
     assert np.linalg.norm(centre - rolled_pts.mean(0)) < 0.25 * box[2]  # the box, turned back, is on the face
+
+
+@pytest.mark.shared_data
+def test_mirrored_detection_is_on_the_flipped_face():
+    """``mirrored`` turns a detection into the flipped frame's: helen_test photos in the left half of a wider frame,
+    upright and rolled by +-30 degrees (found upright or in a turned frame), the mirrored (box, angle), turned back,
+    is the detection's own turned back and flipped (to rounding); an upright box on the face, mirrored, overlaps
+    what ``find`` gives on the flipped frame itself (Haar is not exactly symmetric)."""
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from conftest import shared_path
+
+    def centre(box, angle, shape):
+        corners = np.array([[box[0], box[1]], [box[0] + box[2], box[1] + box[3]]])
+        return unturn(corners, angle, shape).mean(0)
+
+    det = HaarDetector()
+    checked, on_face = {0.0: 0, 30.0: 0, -30.0: 0}, 0
+    for img_path, pts_path in find_pairs(shared_path("300w", "helen_test"))[:8]:
+        photo, pts = load_pair(img_path, pts_path)
+        h, w = photo.shape[:2]
+        face = pts.mean(0) - 1.0  # (OpenCV's pixels)
+        for roll in checked:
+            img = np.full((h, 2 * w), 128, np.uint8)  # (load_pair gives grey)
+            img[:, :w] = photo
+            M = cv2.getRotationMatrix2D((float(face[0]), float(face[1])), roll, 1.0)
+            img = cv2.warpAffine(img, M, (2 * w, h), borderMode=cv2.BORDER_REPLICATE)
+            found = det.find(img)
+            if found is None:  # (Haar misses some rolled faces in any frame)
+                continue
+            box, angle = mirrored(found, 2 * w)
+            assert angle == -found[1]
+            at = centre(*found, img.shape)
+            assert np.abs(centre(box, angle, img.shape) - [2 * w - at[0], at[1]]).max() < 1e-6
+            checked[roll] += 1
+            if roll == 0.0 and np.linalg.norm(at - face) < 0.25 * found[0][2]:  # upright, on the face
+                own = det.find(np.ascontiguousarray(img[:, ::-1]))
+                assert own is not None and own[1] == 0.0 and overlap(box, own[0]) > 0.6, img_path.name
+                on_face += 1
+    assert on_face >= 5 and checked[30.0] >= 3 and checked[-30.0] >= 3, (on_face, checked)
 
 
 def test_unturn_inverts_the_turn():

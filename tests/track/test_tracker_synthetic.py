@@ -866,12 +866,38 @@ def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
 
     tracker = Tracker(synth_model)
     calls = []
-    detect_and_fit = tracker.detect_and_fit
-    tracker.detect_and_fit = lambda image: (calls.append(1), detect_and_fit(image))[1]  # counts, runs them as they are
+    find = tracker.detector.find
+    tracker.detector.find = lambda image, **kw: (calls.append(1), find(image, **kw))[1]  # counts, runs them as they are
     for img in (np.full((220, 220), 128, np.uint8), np.zeros((220, 220, 3), np.uint8)):
         res = tracker.fit_still(ReplayFrame(0, 0.0, img))
         assert not res.success and np.isnan(res.landmarks).all()
-    assert len(calls) == 2
+    assert len(calls) == 2  # one detection each, none in a mirrored copy
+
+
+def test_fit_still_mirror_starts_from_the_images_box_where_haar_misses_it(synth_model):
+    """The mirrored image is fitted from its own detection; where Haar finds no face in it (Haar is not symmetric),
+    from the image's own box, mirrored (``detector.mirrored``), so the mirror's fit still joins the image's."""
+    from aamtrack.detector import mirrored
+    from aamtrack.track.replay import ReplayFrame
+
+    images, _ = synth.random_faces(1, np.random.default_rng(SEED + 47), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    find, seen = tracker.detector.find, []
+
+    def first_only(image, **kw):  # the image's detection as it is; none in the mirrored copy
+        seen.append(image)
+        return find(image, **kw) if len(seen) == 1 else None
+
+    tracker.detector.find = first_only
+    used = []
+    detect_and_fit = tracker.detect_and_fit
+    tracker.detect_and_fit = lambda image, **kw: (used.append(kw.get("found")), detect_and_fit(image, **kw))[1]
+    res = tracker.fit_still(ReplayFrame(0, 0.0, images[0]))
+    assert len(seen) == 2 and np.array_equal(seen[1], images[0][:, ::-1])  # the mirror was looked at, found nothing
+    assert len(used) == 2
+    box, angle = mirrored(used[0], images[0].shape[1])
+    assert np.array_equal(used[1][0], box) and used[1][1] == angle  # ... and was fitted from the mirrored box
+    assert res.success
 
 
 def test_fit_still_takes_two_agreeing_dim_fits_and_not_one(synth_model):
@@ -891,8 +917,8 @@ def test_fit_still_takes_two_agreeing_dim_fits_and_not_one(synth_model):
     for img, pts in zip(images, truth):
         for conf, dim, shift, accepted in ((0.3, True, 0.0, True), (0.3, False, 0.0, False),
                                            (0.5 * cfg.dim_tracked_min, True, 0.0, False), (0.3, True, 12.0, False)):
-            def judged(image, *, conf=conf, dim=dim, shift=shift, img=img):
-                res, timings = real(image)
+            def judged(image, *, found=None, conf=conf, dim=dim, shift=shift, img=img):
+                res, timings = real(image, found=found)
                 moved = res.landmarks + [shift, 0.0] if image is not img else res.landmarks  # the mirror's moved
                 return replace(res, confidence=conf, dim=dim, landmarks=moved), timings
             tracker.detect_and_fit = judged

@@ -145,7 +145,9 @@ def finished_summary(task: dict) -> dict | None:
 _local = threading.local()  # per worker thread: {model path: warmed-up Tracker}
 
 
-def _tracker(model_path: Path):
+def warm_tracker(model_path: Path):
+    """This thread's Tracker of the model file ``model_path``, made and warmed up (numba's kernels loaded) on first
+    use: a batch's tasks and ``aamtrack fit``'s workers share it, and workers forked after it was made inherit it."""
     from ..model import load_model
     from ..track.benchmark import warmup
     from ..track.tracker import Tracker
@@ -188,7 +190,7 @@ def run_task(task: dict, on_frame=None) -> dict:
         summary = track_file(task["input"], model_path=Path(task["model_path"]), out_dir=Path(task["out_dir"]),
                              overlay=o["video"], pts=o["pts"], replay=o["realtime"], fps=o["fps"], progress=False,
                              smooth=smooth, report=o["report"], name=task["name"], on_frame=on_frame,
-                             tracker=_tracker(Path(task["model_path"])), decode_threads=_decode_threads,
+                             tracker=warm_tracker(Path(task["model_path"])), decode_threads=_decode_threads,
                              extra={"batch": {"input": task["input_abs"], "options": task["options"]}})
     except Exception as exc:  # noqa: BLE001 - any failure is this input's row; the batch goes on
         log.info("%s: failed: %s", task["input"], exc, exc_info=not isinstance(exc, (AamtrackError, OSError)))
@@ -418,7 +420,7 @@ def run_batch(items: list[str], *, out_dir: Path, model_path: Path, options: dic
                 rows[k] = _row(task, "skipped", done)
         todo = [k for k in todo if rows[k] is None]
         if todo:
-            _tracker(Path(model_path))  # a bad model fails the batch here, once; forked workers inherit it
+            warm_tracker(Path(model_path))  # a bad model fails the batch here, once; forked workers inherit it
     else:
         from ..model import load_model
 

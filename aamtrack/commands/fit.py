@@ -25,7 +25,7 @@ from ..models import default_model_path
 from ..result import FrameResult
 from ..track.replay import ReplayFrame
 from ..track.tracker import Tracker
-from .batch import _tracker, default_jobs, worker_pool
+from .batch import default_jobs, warm_tracker, worker_pool
 from .run import model_and_output_arguments, output_base, output_dir
 
 EXAMPLES = """examples:
@@ -65,7 +65,7 @@ def _fit_image(tracker: Tracker, index: int, path: Path, readable: bool, mirror:
 def _worker_fit(model_path: str, index: int, path: Path, readable: bool, mirror: bool) -> FrameResult:
     """``_fit_image`` in a worker process of ``--jobs N`` (its tracker made once per process, or inherited from
     the parent when forked)."""
-    return _fit_image(_tracker(Path(model_path)), index, path, readable, mirror)
+    return _fit_image(warm_tracker(Path(model_path)), index, path, readable, mirror)
 
 
 @contextmanager
@@ -76,7 +76,7 @@ def _fitting(tasks: list, tracker: Tracker, model_path: Path, jobs: int) -> Iter
     if jobs <= 1 or len(tasks) <= 1:
         yield (_fit_image(tracker, *task) for task in tasks)
         return
-    _tracker(model_path)  # made and warmed up here, before the workers are forked: they start with it
+    warm_tracker(model_path)  # made and warmed up here, before the workers are forked: they start with it
     try:
         with worker_pool(min(jobs, len(tasks))) as (pool, _):
             yield _in_order(pool, tasks, model_path, jobs)

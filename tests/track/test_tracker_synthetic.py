@@ -861,7 +861,8 @@ def test_fit_at_points_fits_the_face_the_points_are_on(synth_model):
 
 
 def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
-    """A blank still stays lost whether mirrored or not; the mirror is fitted only after the image had a fit."""
+    """A blank still stays lost whether mirrored or not: no face is found in it nor in its mirror, so nothing is
+    fitted (a fit would search)."""
     from aamtrack.track.replay import ReplayFrame
 
     tracker = Tracker(synth_model)
@@ -870,8 +871,38 @@ def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
     tracker.detector.find = lambda image, **kw: (calls.append(1), find(image, **kw))[1]  # counts, runs them as they are
     for img in (np.full((220, 220), 128, np.uint8), np.zeros((220, 220, 3), np.uint8)):
         res = tracker.fit_still(ReplayFrame(0, 0.0, img))
-        assert not res.success and np.isnan(res.landmarks).all()
-    assert len(calls) == 2  # one detection each, none in a mirrored copy
+        assert not res.success and np.isnan(res.landmarks).all() and "search" not in res.timings
+        no_mirror = tracker.fit_still(ReplayFrame(0, 0.0, img), mirror=False)
+        assert not no_mirror.success and "search" not in no_mirror.timings
+    assert len(calls) == 6  # each image, its mirror, and the image alone without the mirror
+
+
+def test_fit_still_takes_the_mirrors_detection_where_haar_misses_the_image(synth_model):
+    """Where Haar finds no face in a still but finds it in the mirrored still, the still is fitted from that
+    detection mirrored back (``detector.mirrored``), and the mirror from its own: the fit is the one the image's
+    own detection would have given."""
+    from aamtrack.detector import mirrored
+    from aamtrack.track.replay import ReplayFrame
+
+    images, truth = synth.random_faces(1, np.random.default_rng(SEED + 47), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    find, seen = tracker.detector.find, []
+
+    def second_only(image, **kw):  # nothing in the image as it is; the mirrored copy's detection as it is
+        seen.append(image)
+        return None if len(seen) == 1 else find(image, **kw)
+
+    tracker.detector.find = second_only
+    used = []
+    detect_and_fit = tracker.detect_and_fit
+    tracker.detect_and_fit = lambda image, **kw: (used.append(kw.get("found")), detect_and_fit(image, **kw))[1]
+    res = tracker.fit_still(ReplayFrame(0, 0.0, images[0]))
+    assert len(seen) == 2 and np.array_equal(seen[1], images[0][:, ::-1])  # the mirror asked once, not twice
+    own = find(np.ascontiguousarray(images[0][:, ::-1]))
+    box, angle = mirrored(own, images[0].shape[1])
+    assert np.array_equal(used[0][0], box) and used[0][1] == angle  # the image from the mirror's box, mirrored
+    assert np.array_equal(used[1][0], own[0]) and used[1][1] == own[1]  # the mirror from its own
+    assert res.success and np.linalg.norm(res.landmarks - truth[0], axis=1).mean() < 2.0  # within two pixels
 
 
 def test_fit_still_mirror_starts_from_the_images_box_where_haar_misses_it(synth_model):

@@ -391,8 +391,8 @@ class ImageFrames(FrameSource):
                 break
         if first is None:
             raise InputError(f"{name}: none of the {len(self.paths)} image files could be read")
-        self.first_readable = k
-        self._first = (k, first)  # (the files before it could not be read: not read, nor warned of, again)
+        self.first_readable = k  # (the files before it could not be read: not read, nor warned of, again)
+        self._first_image = first  # delivered without a second read, once
         super().__init__(name=name, fps=fps, n_frames=len(self.paths), width=first.shape[1],
                          height=first.shape[0], resize=resize)
         logger.info("%s: %s", name, self)
@@ -407,10 +407,10 @@ class ImageFrames(FrameSource):
         for index, path in enumerate(self.paths):
             if self._closed:
                 return
-            if self._first is not None and index < self._first[0]:
+            if index < self.first_readable:
                 image = None
-            elif self._first is not None and self._first[0] == index:
-                image, self._first = self._first[1], None
+            elif index == self.first_readable and self._first_image is not None:
+                image, self._first_image = self._first_image, None
             else:
                 image = read_image(path)
             if image is not None:

@@ -611,19 +611,17 @@ class Tracker:
         if frame.image is None:
             return next(iter(self.track([frame])))
         width = frame.image.shape[1]
+        flipped = np.ascontiguousarray(frame.image[:, ::-1]) if mirror else None
         t0 = time.perf_counter()
-        found = self.detector.find(frame.image)
-        flipped = own = None
+        found, own = self.detector.find(frame.image), None  # own: the mirrored image's detection
         if found is None and mirror:  # Haar is not symmetric: the mirrored image's face, mirrored back
-            flipped = np.ascontiguousarray(frame.image[:, ::-1])
             own = self.detector.find(flipped)
             found = None if own is None else mirrored(own, width)
         res, fit = self._fit_one(frame, found, time.perf_counter() - t0)
         if not mirror or fit is None:
             return res
         t0 = time.perf_counter()
-        if flipped is None:
-            flipped = np.ascontiguousarray(frame.image[:, ::-1])
+        if own is None:  # (not looked for yet: the image had its own detection)
             own = self.detector.find(flipped)
         alt, alt_fit = self._fit_one(ReplayFrame(frame.index, frame.timestamp, flipped),
                                      own if own is not None else mirrored(found, width), time.perf_counter() - t0)

@@ -877,56 +877,51 @@ def test_fit_still_without_a_face_is_not_fitted_and_not_mirrored(synth_model):
     assert len(calls) == 6  # each image, its mirror, and the image alone without the mirror
 
 
+def _still_with_a_blind_look(synth_model, blind: int):
+    """``fit_still`` on a synthetic face with Haar's answer to its ``blind``-th look (0: the image, 1: the mirrored
+    copy) withheld. Returns (image, truth, result, the images Haar was shown, the ``found`` each fit started from,
+    Haar's own detection)."""
+    from aamtrack.track.replay import ReplayFrame
+
+    images, truth = synth.random_faces(1, np.random.default_rng(SEED + 47), size=(220, 220), scale=130.0)
+    tracker = Tracker(synth_model)
+    find, seen, used = tracker.detector.find, [], []
+
+    def withheld(image, **kw):
+        seen.append(image)
+        return None if len(seen) == blind + 1 else find(image, **kw)
+
+    tracker.detector.find = withheld
+    detect_and_fit = tracker.detect_and_fit
+    tracker.detect_and_fit = lambda image, **kw: (used.append(kw.get("found")), detect_and_fit(image, **kw))[1]
+    res = tracker.fit_still(ReplayFrame(0, 0.0, images[0]))
+    return images[0], truth[0], res, seen, used, find
+
+
 def test_fit_still_takes_the_mirrors_detection_where_haar_misses_the_image(synth_model):
     """Where Haar finds no face in a still but finds it in the mirrored still, the still is fitted from that
     detection mirrored back (``detector.mirrored``), and the mirror from its own: the fit is the one the image's
     own detection would have given."""
     from aamtrack.detector import mirrored
-    from aamtrack.track.replay import ReplayFrame
 
-    images, truth = synth.random_faces(1, np.random.default_rng(SEED + 47), size=(220, 220), scale=130.0)
-    tracker = Tracker(synth_model)
-    find, seen = tracker.detector.find, []
-
-    def second_only(image, **kw):  # nothing in the image as it is; the mirrored copy's detection as it is
-        seen.append(image)
-        return None if len(seen) == 1 else find(image, **kw)
-
-    tracker.detector.find = second_only
-    used = []
-    detect_and_fit = tracker.detect_and_fit
-    tracker.detect_and_fit = lambda image, **kw: (used.append(kw.get("found")), detect_and_fit(image, **kw))[1]
-    res = tracker.fit_still(ReplayFrame(0, 0.0, images[0]))
-    assert len(seen) == 2 and np.array_equal(seen[1], images[0][:, ::-1])  # the mirror asked once, not twice
-    own = find(np.ascontiguousarray(images[0][:, ::-1]))
-    box, angle = mirrored(own, images[0].shape[1])
+    image, truth, res, seen, used, find = _still_with_a_blind_look(synth_model, 0)
+    assert len(seen) == 2 and np.array_equal(seen[1], image[:, ::-1])  # the mirror asked once, not twice
+    own = find(np.ascontiguousarray(image[:, ::-1]))
+    box, angle = mirrored(own, image.shape[1])
     assert np.array_equal(used[0][0], box) and used[0][1] == angle  # the image from the mirror's box, mirrored
     assert np.array_equal(used[1][0], own[0]) and used[1][1] == own[1]  # the mirror from its own
-    assert res.success and np.linalg.norm(res.landmarks - truth[0], axis=1).mean() < 2.0  # within two pixels
+    assert res.success and np.linalg.norm(res.landmarks - truth, axis=1).mean() < 2.0  # within two pixels
 
 
 def test_fit_still_mirror_starts_from_the_images_box_where_haar_misses_it(synth_model):
     """The mirrored image is fitted from its own detection; where Haar finds no face in it (Haar is not symmetric),
     from the image's own box, mirrored (``detector.mirrored``), so the mirror's fit still joins the image's."""
     from aamtrack.detector import mirrored
-    from aamtrack.track.replay import ReplayFrame
 
-    images, _ = synth.random_faces(1, np.random.default_rng(SEED + 47), size=(220, 220), scale=130.0)
-    tracker = Tracker(synth_model)
-    find, seen = tracker.detector.find, []
-
-    def first_only(image, **kw):  # the image's detection as it is; none in the mirrored copy
-        seen.append(image)
-        return find(image, **kw) if len(seen) == 1 else None
-
-    tracker.detector.find = first_only
-    used = []
-    detect_and_fit = tracker.detect_and_fit
-    tracker.detect_and_fit = lambda image, **kw: (used.append(kw.get("found")), detect_and_fit(image, **kw))[1]
-    res = tracker.fit_still(ReplayFrame(0, 0.0, images[0]))
-    assert len(seen) == 2 and np.array_equal(seen[1], images[0][:, ::-1])  # the mirror was looked at, found nothing
+    image, _, res, seen, used, _ = _still_with_a_blind_look(synth_model, 1)
+    assert len(seen) == 2 and np.array_equal(seen[1], image[:, ::-1])  # the mirror was looked at, found nothing
     assert len(used) == 2
-    box, angle = mirrored(used[0], images[0].shape[1])
+    box, angle = mirrored(used[0], image.shape[1])
     assert np.array_equal(used[1][0], box) and used[1][1] == angle  # ... and was fitted from the mirrored box
     assert res.success
 

@@ -27,6 +27,7 @@ from . import __version__
 from .errors import ModelFileError
 from .imaging import FEATURE_KINDS, Features
 from .io.atomic import atomic_write
+from .io.obj import npz_problem
 from .io.pts import N_LANDMARKS
 from .landmark_cascade import DescriptorSpec, LandmarkCascade, quantise_rows, sharpness, signal_to_noise
 from .mesh.shape_model import N_POSE, ShapeModel
@@ -402,10 +403,6 @@ def _soft_couples(c: _Checker, specs, couples: tuple, textures: tuple, n_params:
     return soft
 
 
-ZIP_MAGIC = b"PK\x03\x04"  # how an .npz (a zip archive) starts
-NPY_MAGIC = b"\x93NUMPY"  # how a bare .npy array starts
-
-
 def load_model(path: str | Path) -> Model:
     """Read and check a model file; raises ModelFileError naming the file and what is wrong."""
     path = Path(path)
@@ -413,14 +410,11 @@ def load_model(path: str | Path) -> Model:
         raise ModelFileError(f"{path}: no such model file")
     try:
         with open(path, "rb") as fh:  # our handle: closed on a bad zip too
-            head = fh.read(len(NPY_MAGIC))
-            if not head:
+            problem = npz_problem(fh)
+            if problem == "empty file":
                 raise ModelFileError(f"{path}: empty file, not an aamtrack model")
-            if head == NPY_MAGIC:
-                raise ModelFileError(f"{path}: not an aamtrack model (a bare array, not an .npz archive)")
-            if not head.startswith(ZIP_MAGIC):  # (numpy would take it for a pickle and say that)
-                raise ModelFileError(f"{path}: not an aamtrack model (not an .npz archive)")
-            fh.seek(0)
+            if problem:
+                raise ModelFileError(f"{path}: not an aamtrack model ({problem})")
             with np.load(fh, allow_pickle=False) as z:
                 if "meta" not in z.files:
                     raise ModelFileError(f"{path}: not an aamtrack model (no 'meta' entry)")

@@ -14,6 +14,8 @@ from __future__ import annotations
 import re
 import zipfile
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -136,17 +138,50 @@ def read_obj(path: str | Path) -> ObjMesh:
     return ObjMesh(verts, face_arr, landmarks)
 
 
-def load_npz(path: str | Path) -> dict:
-    """Every array of an ``.npz`` (no pickles), or InputError for a missing, truncated or corrupt file."""
+ZIP_MAGICS = (b"PK\x03\x04", b"PK\x05\x06")  # how an .npz (a zip archive; the second: one with no arrays) starts
+NPY_MAGIC = b"\x93NUMPY"  # how a bare .npy array starts
+
+
+def npz_problem(fh) -> str | None:
+    """Why the binary file ``fh`` (read from its start, left there) is not an ``.npz`` archive ("empty file", "a
+    bare array, not an .npz archive", "not an .npz archive"), or None. ``np.load`` takes anything else for a
+    pickle and says the file holds pickled data, and hands a bare ``.npy`` array back instead of an archive."""
+    head = fh.read(len(NPY_MAGIC))
+    fh.seek(0)
+    if not head:
+        return "empty file"
+    if head == NPY_MAGIC:
+        return "a bare array, not an .npz archive"
+    if not head.startswith(ZIP_MAGICS):
+        return "not an .npz archive"
+    return None
+
+
+@contextmanager
+def open_npz(path: str | Path, what: str = ".npz") -> Iterator:
+    """``np.load``'s lazy archive of the ``.npz`` at path (no pickles), closed on leaving; InputError naming the
+    file for a missing, empty, truncated or corrupt file or one that is not an archive (``what`` names what it
+    should have been in the message)."""
     path = Path(path)
     try:
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:  # our handle: closed on a bad zip too
-            return {k: data[k] for k in data.files}
+        with open(path, "rb") as fh:  # our handle: closed on a bad zip too
+            problem = npz_problem(fh)
+            if problem:
+                raise InputError(f"{path}: cannot read {what} ({problem})")
+            with np.load(fh, allow_pickle=False) as data:
+                yield data
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
             NotImplementedError) as exc:  # zipfile: compression or flags it does not support
-        raise InputError(f"{path}: cannot read .npz ({type(exc).__name__}: {exc})") from None
+        raise InputError(f"{path}: cannot read {what} ({type(exc).__name__}: {exc})") from None
+
+
+def load_npz(path: str | Path) -> dict:
+    """Every array of an ``.npz`` (no pickles), or InputError for a missing, empty, truncated or corrupt file or
+    one that is not an ``.npz`` archive (``open_npz``)."""
+    with open_npz(path) as data:
+        return {k: data[k] for k in data.files}
 
 
 def read_mesh(path: str | Path, landmarks_path: str | Path | None = None, *, need_landmarks: bool = True) -> ObjMesh:

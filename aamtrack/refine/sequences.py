@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.obj import open_npz
 
 _KEYS = ("neutral", "identity_deltas", "expression_deltas", "expression_names", "landmark68_vertex_idx")
 
@@ -46,11 +47,7 @@ class FaceSequence:
 def load_face_model(path: str | Path) -> FaceModel:
     """Read the ICT FaceKit ``.npz`` (see ../shared/data/README.md). Raises InputError naming what is missing."""
     path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read face model ({exc})") from None
-    with data:
+    with open_npz(path, "face model") as data:
         missing = [k for k in _KEYS if k not in data.files]
         if missing:
             raise InputError(f"{path}: face model lacks {', '.join(missing)}")

@@ -123,6 +123,10 @@ def _bad_inputs(tmp):
     _csv(folder / "lm.csv", frames[:1, LANDMARKS])  # 1 row for 2 scans
     empty = tmp / "empty"
     empty.mkdir()
+    np.save(tmp / "bare.npy", frames)  # a bare array, renamed as an archive: np.load hands back no archive
+    (tmp / "bare.npy").rename(tmp / "bare.npz")
+    (tmp / "text.npz").write_text("not an archive\n")  # np.load would call this pickled data
+    (tmp / "empty.npz").write_bytes(b"")
     (tmp / "bad.ply").write_text("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n")
     tpl, scans = tmp / "tpl.obj", tmp / "scans.npz"
     return {
@@ -143,12 +147,17 @@ def _bad_inputs(tmp):
         "empty folder": [tpl, empty],
         "bad ply": [tpl, tmp / "bad.ply"],
         "negative smoothing": [tpl, scans, "--smooth-frames", "-1"],
+        "bare array as template": [tmp / "bare.npz", scans],
+        "bare array as scans": [tpl, tmp / "bare.npz"],
+        "text as scans": [tpl, tmp / "text.npz"],
+        "empty template": [tmp / "empty.npz", scans],
     }
 
 
 BAD = ["missing template", "missing scans", "nan in points", "missing landmarks key", "frame count mismatch",
        "67 landmarks", "one frame", "truncated npz", "duplicate landmarks", "huge coordinates", "tiny coordinates",
-       "template without a mesh", "flat template", "csv rows vs scans", "empty folder", "bad ply", "negative smoothing"]
+       "template without a mesh", "flat template", "csv rows vs scans", "empty folder", "bad ply", "negative smoothing",
+       "bare array as template", "bare array as scans", "text as scans", "empty template"]
 
 
 @pytest.mark.parametrize("case", BAD)

@@ -29,3 +29,16 @@ def test_missing_keys_raise_input_error(tmp_path):
     np.savez(tmp_path / "bad.npz", neutral=np.zeros((3, 3)))
     with pytest.raises(InputError, match="bad.npz"):
         load_face_model(tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize("content, problem", [(None, "a bare array, not an .npz archive"),
+                                              (b"plain text", "not an .npz archive"), (b"", "empty file")])
+def test_a_file_that_is_no_archive_is_named_as_such(tmp_path, content, problem):
+    path = tmp_path / "face.npz"
+    if content is None:
+        np.save(tmp_path / "face.npy", np.zeros((3, 3)))
+        (tmp_path / "face.npy").rename(path)
+    else:
+        path.write_bytes(content)
+    with pytest.raises(InputError, match=rf"face.npz: cannot read face model \({problem}\)$"):
+        load_face_model(path)

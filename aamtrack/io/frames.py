@@ -355,17 +355,20 @@ def _stream_time(cap: cv2.VideoCapture) -> float | None:
     return msec / 1000.0 if math.isfinite(msec) and msec >= 0 else None
 
 
-def read_image(path: str | os.PathLike, flags: int = cv2.IMREAD_COLOR) -> np.ndarray | None:
+def read_image(path: str | os.PathLike, flags: int = cv2.IMREAD_COLOR, *, warn: bool = True) -> np.ndarray | None:
     """The decoded image ((H, W, 3) uint8 BGR with the default ``flags``), or None if the file cannot be read
-    or decoded. Reads the bytes in Python, so any file name works (non-ASCII, not UTF-8)."""
+    or decoded (with a warning naming it, unless not ``warn``). Reads the bytes in Python, so any file name works
+    (non-ASCII, not UTF-8)."""
     try:
         data = np.fromfile(path, dtype=np.uint8)
         image = cv2.imdecode(data, flags) if data.size else None
     except (OSError, cv2.error) as exc:
-        logger.warning("%s: cannot read image: %s", display_name(path), exc)
+        if warn:
+            logger.warning("%s: cannot read image: %s", display_name(path), exc)
         return None
     if image is None or image.size == 0:
-        logger.warning("%s: cannot decode image", display_name(path))
+        if warn:
+            logger.warning("%s: cannot decode image", display_name(path))
         return None
     return image
 
@@ -386,9 +389,11 @@ class ImageFrames(FrameSource):
         fps = DEFAULT_FPS if fps is None else _check_fps(fps)
         first = None
         for k, path in enumerate(self.paths):  # noqa: B007 - k is used after the loop
-            first = read_image(path)
+            first = read_image(path, warn=len(self.paths) > 1)  # one file: the error below says it all
             if first is not None:
                 break
+        if first is None and len(self.paths) == 1:
+            raise InputError(f"{display_name(self.paths[0])}: cannot read the image (not an image file, or truncated)")
         if first is None:
             raise InputError(f"{name}: none of the {len(self.paths)} image files could be read")
         self.first_readable = k  # (the files before it could not be read: not read, nor warned of, again)

@@ -204,6 +204,16 @@ def test_folder_of_only_corrupt_images(tmp_path):
     assert "none of the 2 image files could be read" in _error(tmp_path)
 
 
+def test_one_corrupt_image_is_one_line_without_a_warning_before_it(tmp_path, caplog):
+    (tmp_path / "a.jpg").write_bytes(b"broken")
+    with caplog.at_level("WARNING"):
+        message = _error(tmp_path / "a.jpg")
+    assert message == f"{tmp_path / 'a.jpg'}: cannot read the image (not an image file, or truncated)"
+    assert not caplog.records  # the error names the file already: no warning line ahead of it
+    (tmp_path / "b.png").write_bytes(b"")  # empty
+    assert "b.png: cannot read the image" in _error(str(tmp_path / "b.*"))  # a pattern matching one file
+
+
 def test_damaged_video_ends_with_consecutive_indices(tmp_path):
     # Overwrite a stretch in the middle of an mp4 with seeded noise: decoding fails somewhere in the middle.
     # Whatever FFmpeg makes of it, iteration must end, indices stay consecutive and never exceed the count.

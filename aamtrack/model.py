@@ -33,14 +33,15 @@ from .landmark_cascade import DescriptorSpec, LandmarkCascade, quantise_rows, sh
 from .mesh.shape_model import N_POSE, ShapeModel
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 10  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 11  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
 # 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
 # landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``); 8: a second landmark
 # validator for dim, noisy faces (``dim_validator/*``, ``Model.dim_validator``); 9: a second set of couples for soft
 # faces (``soft_couple*/*``, ``Model.soft_couples``) and (optional) a landmark validator for soft faces
 # (``soft_validator/*``, ``Model.soft_validator``); 10: the landmark cascade's last stage ``repeats`` (it runs that
-# many more times: older files would read as none, and their validators were learned without)
+# many more times: older files would read as none, and their validators were learned without); 11: a landmark
+# cascade for dim faces' detections (``dim_landmarks/*``, ``Model.dim_cascade``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -140,6 +141,7 @@ class Model:
     dim_below: float = 0.0  # this (``landmark_cascade.signal_to_noise``)
     soft_couples: tuple = ()  # the couples a search takes for a face softer than ``soft_above`` at its start (or none)
     soft_validator: Validator | None = None  # the landmark validator for fits the soft cascade gave (not dim ones)
+    dim_cascade: LandmarkCascade | None = None  # the landmark cascade for a detection's fit of a dim face (``dim``)
 
     @property
     def kind(self) -> str:
@@ -227,6 +229,11 @@ def save_model(model: Model, path: str | Path) -> None:
         arrays["soft_landmarks/regressors"], arrays["soft_landmarks/biases"] = sc.regressors.astype(np.float16), \
             sc.biases
         arrays["soft_landmarks/shape_regressors"] = sc.shape_regressors.astype(np.float16)
+    dc = model.dim_cascade
+    if dc is not None:  # as the soft one: the landmark cascade's reference shape and descriptor components
+        arrays["dim_landmarks/regressors"], arrays["dim_landmarks/biases"] = dc.regressors.astype(np.float16), \
+            dc.biases
+        arrays["dim_landmarks/shape_regressors"] = dc.shape_regressors.astype(np.float16)
     lv = model.landmark_validator
     if lv is not None:
         arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
@@ -254,6 +261,7 @@ def save_model(model: Model, path: str | Path) -> None:
                                                      "floor": lc.spec.floor, "repeats": lc.repeats},
         "landmark_validator": None if lv is None else {"names": list(lv.names), "bias": lv.bias},
         "soft_landmarks": None if sc is None else {"above": model.soft_above},
+        "dim_landmarks": None if dc is None else {},
         "dim_validator": None if dv is None else {"names": list(dv.names), "bias": dv.bias,
                                                   "below": model.dim_below},
         "soft_validator": None if sv is None else {"names": list(sv.names), "bias": sv.bias},
@@ -477,11 +485,13 @@ def _read(c: _Checker, meta: dict) -> Model:
     sv = meta.get("soft_validator")
     if sv is not None and (lv is None or soft is None):
         c.fail("a validator for soft faces without a landmark validator and a soft landmark cascade")
+    dim_cascade = _dim_cascade(c, meta.get("dim_landmarks"), lc, dim)
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
                  landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv, n_z),
                  soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below, soft_couples=soft_couples,
-                 soft_validator=None if sv is None else _validator(c, "soft_validator", sv, n_z))
+                 soft_validator=None if sv is None else _validator(c, "soft_validator", sv, n_z),
+                 dim_cascade=dim_cascade)
 
 
 def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:
@@ -565,6 +575,18 @@ def _soft_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None) ->
                    biases=c.array("soft_landmarks/biases", np.float64, lc.biases.shape),
                    shape_regressors=c.array("soft_landmarks/shape_regressors", np.float32,
                                             lc.shape_regressors.shape)), above
+
+
+def _dim_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None, dim: Validator | None):
+    """The dim faces' landmark cascade or None: the landmark cascade ``lc`` with its regressors, never repeated."""
+    if spec is None:
+        return None
+    if lc is None or dim is None:
+        c.fail("a landmark cascade for dim faces without a landmark cascade and a validator for dim faces")
+    return replace(lc, regressors=c.array("dim_landmarks/regressors", np.float32, lc.regressors.shape),
+                   biases=c.array("dim_landmarks/biases", np.float64, lc.biases.shape),
+                   shape_regressors=c.array("dim_landmarks/shape_regressors", np.float32,
+                                            lc.shape_regressors.shape), repeats=0)
 
 
 __all__ = ["FORMAT_VERSION", "N_POSE", "STAT_NAMES", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

@@ -47,6 +47,26 @@ def test_round_trip(tmp_path, synth_model):
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
 
 
+def test_round_trip_of_the_dim_faces_cascade(tmp_path, synth_model):
+    """``Model.dim_cascade`` (the synthetic model learned one from dim copies of its faces) is stored as the soft
+    one is: its own regressors (float16, as trained), the landmark cascade's reference shape and components
+    shared, read back never repeated; a model without one reads back without one."""
+    from dataclasses import replace
+
+    dc = synth_model.dim_cascade
+    assert dc is not None and dc.repeats == 0
+    assert not np.array_equal(dc.regressors, synth_model.landmark_cascade.regressors)  # its own
+    path = tmp_path / "m.npz"
+    save_model(synth_model, path)
+    m = load_model(path)
+    assert np.array_equal(m.dim_cascade.regressors, dc.regressors) and np.array_equal(m.dim_cascade.biases, dc.biases)
+    assert np.array_equal(m.dim_cascade.shape_regressors, dc.shape_regressors)
+    assert m.dim_cascade.repeats == 0 and m.landmark_cascade.repeats == 2
+    assert m.dim_cascade.basis is m.landmark_cascade.basis and m.dim_cascade.ref is m.landmark_cascade.ref
+    save_model(replace(synth_model, dim_cascade=None), path)
+    assert load_model(path).dim_cascade is None  # none stored, none read
+
+
 def test_soft_faces_take_the_soft_cascade(synth_model, synth_data):
     """``Model.cascade_for``: a face above the threshold takes the soft cascade, below it the sharp one (the
     threshold moved about the face's own sharpness, so both sides are seen on one image)."""
@@ -107,6 +127,43 @@ def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
     assert replace(m, dim_below=s + 0.01).validator_for(gray, 1.0, points[0], soft=True) is m.dim_validator
     assert replace(m, soft_validator=None, dim_below=s - 0.01).validator_for(gray, 1.0, points[0], soft=True) is \
         m.landmark_validator
+
+
+def test_a_dim_face_detection_takes_the_dim_cascade(synth_model, synth_data):
+    """``Searcher.refine_landmarks``: a detection's fit (``detect``) of a face dim by the model's measure takes
+    ``Model.dim_cascade`` (made here to move no point: zero regressors), a tracked frame's fit of the same face and
+    a detection's fit of a face that is not dim take the landmark cascade, which moves the points; the threshold
+    ``dim_below`` moved about the face's own signal-to-noise so both sides are seen on one image."""
+    from dataclasses import replace
+
+    from aamtrack.imaging import Levels
+    from aamtrack.landmark_cascade import signal_to_noise
+    from aamtrack.search import Searcher
+
+    images, points = synth_data
+    gray = cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY).astype(np.float32) if images[0].ndim == 3 else \
+        images[0].astype(np.float32)
+    lc = synth_model.landmark_cascade
+    still = replace(lc, regressors=np.zeros_like(lc.regressors), biases=np.zeros_like(lc.biases),
+                    shape_regressors=np.zeros_like(lc.shape_regressors), repeats=0)
+    searcher = Searcher(synth_model)
+    res = searcher.fit(Levels(gray, synth_model.features), _start(synth_model, points[0]), landmarks=False)
+    r = searcher.factors(res.p)[-1]
+    s = signal_to_noise(Levels(gray, synth_model.features).resampled(r), r, res.landmarks)
+    dim, clear = (Searcher(replace(synth_model, dim_cascade=still, soft_cascade=None, dim_below=b))
+                  for b in (s + 0.01, s - 0.01))
+    levels = Levels(gray, synth_model.features)
+    assert np.array_equal(dim.refine_landmarks(levels, res, r, detect=True).landmarks, res.landmarks)
+    moved = np.abs(dim.refine_landmarks(levels, res, r).landmarks - res.landmarks).max()
+    assert moved > 0.01  # a tracked frame's fit: the landmark cascade
+    assert np.abs(clear.refine_landmarks(levels, res, r, detect=True).landmarks - res.landmarks).max() > 0.01
+
+
+def _start(model, pts):
+    """A search vector of the rough pose fitted to 68 points, coefficients 0."""
+    from aamtrack.mesh.shape_model import initial_pose
+
+    return np.r_[initial_pose(model.shape, pts - 1.0, None), np.zeros(model.shape.n_shape)]
 
 
 def _rewrite_meta(path, out, **changes):
@@ -232,13 +289,16 @@ def _damaged(synth_model):
         ("soft validator descriptor weights length", {"soft_validator/descriptor_weights":
                                                       synth_model.soft_validator.descriptor_weights[:-1]}, {},
          "has shape"),
+        ("dim cascade without its arrays", {"dim_landmarks/biases": None}, {}, "missing"),
+        ("dim cascade without a dim validator", {}, {"dim_validator": None},
+         "dim faces without a landmark cascade and a validator"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(33))
+@pytest.mark.parametrize("case", range(35))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

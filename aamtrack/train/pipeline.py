@@ -147,7 +147,18 @@ class TrainConfig:
     (``train.validator.soft_copy``) and matched to the landmark validator's held-out false accepts. Measured
     (3D, 2026-11-28, ``benchmarks/robustness.py``): helen_test blurred by 0.06 eye distances 89.1% -> 90.9% within
     NME 0.08 (mean 0.0441 -> 0.0437, Spearman(confidence, NME) -0.52 -> -0.59), clean stills the same, dim_small
-    81.8% -> 81.5%, none of 330 blurred non-face stills accepted (a prototype on the model before it: 91.2%)."""
+    81.8% -> 81.5%, none of 330 blurred non-face stills accepted (a prototype on the model before it: 91.2%).
+    dim_cascade: with a landmark validator for dim faces, a landmark cascade for a still's fit of a dim face
+    (``Model.dim_cascade``, ``Tracker.fit_still``), learned on this many dim copies per (mirrored) training image
+    (``dim_copy``; those whose search from the Haar box ends on a face dim by ``dim_validator``'s measure, twice
+    its threshold, as the dim validator keeps them), each starting from that search, with the first cascade's
+    descriptor components (0: none). The validators learn from the other cascades' fits, as before it. A
+    prototype (the shipped 3D model with a cascade so learned, 2026-11-29): helen_test made small, dark and noisy
+    (robustness, dim_small) 82.1% -> 85.2% within NME 0.08 (mean over the fits 0.0521 -> 0.0485). In video it
+    was not kept: on every fit of a dim face the hard clips' other dim faces lost accuracy (hard4 0.0306 ->
+    0.0332, hard6 0.0310 -> 0.0348); on detections only, with the dim validator learned from its fits, cap12
+    made small and dim read 96.0% / 0.0316 -> 97.5% / 0.0351 tracked / NME, 3 frames of a false detection at
+    0.79 among them (benchmarks/README.md, robustness)."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"
@@ -190,6 +201,7 @@ class TrainConfig:
     validator_degraded: float = 0.5
     dim_validator: float = 4.5
     soft_validator: bool = True
+    dim_cascade: float = 2.0
     seed: int = 0
 
     def __post_init__(self):
@@ -324,34 +336,46 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
 
 
 def _blurred_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int, fits: np.ndarray,
-                    owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator) -> tuple:
+                    owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator, *,
+                    make: Callable | None = None, dim_below: float = 0.0) -> tuple:
     """Gaussian-blurred copies of a random ``share`` of the sharp training images (sigma drawn in ``eye_range``
-    outer eye-corner distances) for a landmark cascade: each copy's grey image at the finest couple's factor and
-    that factor, the sharp image it copies, and, as its starts, the search's own fit of the copy from the sharp
-    image's Haar box (where the search really leaves a blurred face, farther off than on the sharp one; copies
-    without a box take the sharp image's fits ``fits[owner == i]``). Returns (images, scales, copied image
-    (n,), fits (k, 68, 2), the copy each fit belongs to (k,))."""
+    outer eye-corner distances; a ``share`` above 1: that many copies per image) for a landmark cascade: each
+    copy's grey image at the finest couple's factor and that factor, the sharp image it copies, and, as its
+    starts, the search's own fit of the copy from the sharp image's Haar box (where the search really leaves a
+    blurred face, farther off than on the sharp one; copies without a box take the sharp image's fits
+    ``fits[owner == i]``). ``make(gray, eye_px, rng)``: another kind of copy instead (``dim_copy``); with
+    ``dim_below`` > 0 only copies with a box whose fit ends on a face with ``signal_to_noise`` below it are kept.
+    Returns (images, scales, copied image (n,), fits (k, 68, 2), the copy each fit belongs to (k,))."""
     searcher = Searcher(model)
     sm = model.shape
-    pick = rng.permutation(n_sharp)[:int(round(share * n_sharp))]
-    images, scales, copy_fits, copy_owner = [], [], [], []
-    for j, i in enumerate(pick):
-        levels = Levels(blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), eye_range, rng),
-                        model.features)
+    make = make or (lambda g, eye, r: blurred_copy(g, eye, eye_range, r))
+    n_copies = int(round(share * n_sharp))
+    pick = np.concatenate([rng.permutation(n_sharp) for _ in range(max(1, int(np.ceil(share))))])[:n_copies]
+    images, scales, picked, copy_fits, copy_owner = [], [], [], [], []
+    for i in pick:
+        levels = Levels(make(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), rng), model.features)
         f = [fk[i] for fk in factors]
-        images.append(levels.resampled(f[-1]))
-        scales.append(f[-1])
+        fine = levels.resampled(f[-1])  # first: the coarser levels are then resampled from it
         box = _image_box(boxes, i, n_orig, gray[i].shape[1])
+        j = len(images)
         if box is not None:
-            copy_fits.append(searcher.fit(levels, _box_start(sm, box, box_points), factors=f,
-                                          landmarks=False).landmarks)
+            fit = searcher.fit(levels, _box_start(sm, box, box_points), factors=f, landmarks=False).landmarks
+            if dim_below > 0 and signal_to_noise(fine, f[-1], fit) >= dim_below:
+                continue
+            copy_fits.append(fit)
             copy_owner.append(j)
+        elif dim_below > 0:
+            continue
         else:
             rows = np.flatnonzero(owner == i)
             copy_fits.extend(fits[rows])
             copy_owner.extend([j] * len(rows))
-    log.info("landmark cascade: %d blurred copies", len(pick))
-    return images, scales, pick, np.array(copy_fits).reshape(-1, 68, 2), np.array(copy_owner, np.int64)
+        images.append(fine)
+        scales.append(f[-1])
+        picked.append(i)
+    log.info("landmark cascade: %d %s copies", len(images), "dim" if dim_below > 0 else "blurred")
+    return images, scales, np.array(picked, np.int64), np.array(copy_fits).reshape(-1, 68, 2), \
+        np.array(copy_owner, np.int64)
 
 
 def _soft_threshold(sharp: LandmarkCascade, soft: LandmarkCascade, images: list, scales: list, truth: np.ndarray,
@@ -746,6 +770,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     final_err = nme(final_lmk, pts[owner])
     t_val = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd
     landmark_cascade, lmk_record, soft_cascade, soft_above, soft_record = None, [], None, float("inf"), []
+    dim_cascade, dim_cascade_record = None, []
     if config.landmark_halves:
         fits_det, owner_det = _detection_fits(replace(model, validator=validator), feats, factors, boxes, box_points,
                                               [g.shape[1] for g in gray], n_orig, n_sharp)
@@ -784,12 +809,21 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                                                lmk_scales + b_scales, np.concatenate([lmk_truth, pts[b_of]]),
                                                np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_l + b_owner])
             soft_record.append({"gate": gate})  # after the stages' records
+        if config.dim_cascade > 0 and config.dim_validator > 0 and config.landmark_validator:
+            d_images, d_scales, d_of, d_fits, d_owner = _blurred_copies(
+                searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
+                config.dim_cascade, config.landmark_blur_eye, np.random.default_rng(config.seed + 11), make=dim_copy,
+                dim_below=2 * config.dim_validator)
+            if len(d_images) >= 20:
+                dim_cascade, dim_cascade_record = learn_landmark_cascade(
+                    d_images, d_scales, pts[d_of], d_fits, d_owner, owner_group[d_of], like=landmark_cascade,
+                    rng=np.random.default_rng(config.seed + 12), **{**lmk_kw, "repeats": 0})
     del fine_gray
     t_lmk = time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val
     landmark_validator = dim_validator = dim_record = soft_validator = soft_val_record = None
     if landmark_cascade is not None and config.landmark_validator:
         lmk_model = replace(model, validator=validator, landmark_cascade=landmark_cascade, soft_cascade=soft_cascade,
-                            soft_above=soft_above)
+                            soft_above=soft_above, dim_cascade=dim_cascade)
         dim = config.dim_validator > 0
         soft_val = config.soft_validator and soft_cascade is not None
         landmark_validator, y0, logit0 = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
@@ -820,7 +854,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                "landmark_s": t_lmk,
                "landmark_validator_s": time.perf_counter() - t0 - t_shape - t_det - t_tex - t_upd - t_val - t_lmk}
     cfg = {**asdict(config), "n_images": n_orig, "kind": kind, "detector_images": int(len(det)), "stages": record,
-           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record, "soft_stages": soft_search_record,
+           "landmark_stages": lmk_record, "soft_landmark_stages": soft_record,
+           "dim_landmark_stages": dim_cascade_record, "soft_stages": soft_search_record,
            "dim_validator_fit": dim_record,
            "soft_validator_fit": soft_val_record,
            "train_start_nme_median": float(np.median(nme(_landmarks(sm, basis, starts), pts[owner[:n0]]))),
@@ -831,5 +866,6 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                   detector_box_points=box_points, validator=validator, config=cfg, landmark_cascade=landmark_cascade,
                   landmark_validator=landmark_validator, soft_cascade=soft_cascade, soft_above=soft_above,
                   dim_validator=dim_validator, dim_below=config.dim_validator if dim_validator is not None else 0.0,
-                  soft_couples=soft_couples if soft_cascade is not None else (), soft_validator=soft_validator)
+                  soft_couples=soft_couples if soft_cascade is not None else (), soft_validator=soft_validator,
+                  dim_cascade=dim_cascade if dim_validator is not None else None)
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

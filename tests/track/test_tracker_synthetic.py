@@ -1094,3 +1094,32 @@ def test_tracked_frames_search_a_tighter_crop_to_the_same_points(moving_video, s
     assert max(moved) < 0.2  # px
     err = np.array([np.linalg.norm(r.landmarks - t, axis=1).mean() for r, t in zip(runs[0.2], truth)])
     assert err.mean() < 1.0  # px, as the default
+
+
+def test_only_a_still_s_fit_takes_the_cascade_for_dim_faces(moving_video, synth_model, monkeypatch):
+    """``Model.dim_cascade`` serves ``fit_still``'s fits of a dim face and never a video's frames (detections
+    included), where it measured worse. Every face counts as dim here (``dim_below`` huge); the cascades that run
+    are recorded."""
+    from dataclasses import replace
+
+    from aamtrack import landmark_cascade
+    from aamtrack.track.replay import ReplayFrame
+
+    model = replace(synth_model, dim_below=1e9)
+    assert model.dim_cascade is not None and model.dim_validator is not None
+    ran = []
+    run = landmark_cascade.LandmarkCascade.run
+    monkeypatch.setattr(landmark_cascade.LandmarkCascade, "run",
+                        lambda self, *a, **k: ran.append(self is model.dim_cascade) or run(self, *a, **k))
+    tracker = Tracker(model)
+    path, _ = moving_video
+    with open_frames(path) as src:
+        frames = list(src)
+    results = list(tracker.track(frames[:5]))
+    assert results[0].status == "detected" and ran and not any(ran)  # a video: never
+    ran.clear()
+    tracker.fit_still(ReplayFrame(0, 0.0, frames[0].image))
+    assert any(ran)  # a still's detection: the dim faces' cascade
+    ran.clear()
+    list(tracker.track(frames[:2]))
+    assert ran and not any(ran)  # and video again after a still: never

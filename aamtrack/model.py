@@ -41,7 +41,7 @@ FORMAT_VERSION = 11  # 3: the landmark cascade (``landmark_cascade``); 4: the la
 # faces (``soft_couple*/*``, ``Model.soft_couples``) and (optional) a landmark validator for soft faces
 # (``soft_validator/*``, ``Model.soft_validator``); 10: the landmark cascade's last stage ``repeats`` (it runs that
 # many more times: older files would read as none, and their validators were learned without); 11: a landmark
-# cascade for dim faces' detections (``dim_landmarks/*``, ``Model.dim_cascade``)
+# cascade for stills' fits of dim faces (``dim_landmarks/*``, ``Model.dim_cascade``)
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -141,7 +141,7 @@ class Model:
     dim_below: float = 0.0  # this (``landmark_cascade.signal_to_noise``)
     soft_couples: tuple = ()  # the couples a search takes for a face softer than ``soft_above`` at its start (or none)
     soft_validator: Validator | None = None  # the landmark validator for fits the soft cascade gave (not dim ones)
-    dim_cascade: LandmarkCascade | None = None  # the landmark cascade for a detection's fit of a dim face (``dim``)
+    dim_cascade: LandmarkCascade | None = None  # the landmark cascade for a still's fit of a dim face (``dim``)
 
     @property
     def kind(self) -> str:

@@ -125,7 +125,7 @@ class Searcher:
         return self.refine_landmarks(levels, res, factors[-1]) if landmarks else res
 
     def refine_landmarks(self, levels: Levels, res: FitResult, r: float | None = None, *,
-                         last: int = 0, dim: bool | None = None, detect: bool = False) -> FitResult:
+                         last: int = 0, dim: bool | None = None, still: bool = False) -> FitResult:
         """The fit with its 68 points moved by the model's landmark cascade (``aamtrack.landmark_cascade``),
         read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
         search passes the one it used, whose level is made already); the fit itself when the model has none. A
@@ -136,9 +136,9 @@ class Searcher:
         ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames,
         ``TrackerConfig.landmark_stages_tracked``). The last stage's ``LandmarkCascade.repeats`` are left out for a
         face that is dim and noisy at the search's points (``Model.dim``), or, given ``dim``, as it says (a tracked
-        frame passes its previous frame's verdict, ``FitResult.dim``, for free). ``detect``: the fit of a still's detection
-        (``Tracker.fit_still``), which for a dim face takes the model's cascade for those (``Model.dim_cascade``),
-        learned from such fits (``TrainConfig.dim_cascade``: not in video, where it measured worse)."""
+        frame passes its previous frame's verdict, ``FitResult.dim``, for free). ``still``: a still's fit
+        (``Tracker.fit_still``), which for a dim face takes the model's cascade for those (``Model.dim_cascade``,
+        learned from detections' fits; ``TrainConfig.dim_cascade``: not in video, where it measured worse)."""
         if self.model.landmark_cascade is None:
             return res
         if r is None:
@@ -146,7 +146,7 @@ class Searcher:
         img = levels.resampled(r)
         lc = self.model.cascade_for(img, r, res.landmarks)
         first = max(0, lc.n_stages - last) if last > 0 else 0
-        by_dim = detect and first == 0 and self.model.dim_cascade is not None
+        by_dim = still and first == 0 and self.model.dim_cascade is not None
         if (lc.repeats or by_dim) and dim is None:
             dim = self.model.dim(img, r, res.landmarks)
         repeats = 0 if dim else lc.repeats

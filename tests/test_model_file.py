@@ -129,10 +129,10 @@ def test_dim_noisy_faces_take_the_dim_validator(synth_model, synth_data):
         m.landmark_validator
 
 
-def test_a_dim_face_detection_takes_the_dim_cascade(synth_model, synth_data):
-    """``Searcher.refine_landmarks``: a detection's fit (``detect``) of a face dim by the model's measure takes
+def test_a_dim_face_s_still_fit_takes_the_dim_cascade(synth_model, synth_data):
+    """``Searcher.refine_landmarks``: a still's fit (``still``) of a face dim by the model's measure takes
     ``Model.dim_cascade`` (made here to move no point: zero regressors), a tracked frame's fit of the same face and
-    a detection's fit of a face that is not dim take the landmark cascade, which moves the points; the threshold
+    a still's fit of a face that is not dim take the landmark cascade, which moves the points; the threshold
     ``dim_below`` moved about the face's own signal-to-noise so both sides are seen on one image."""
     from dataclasses import replace
 
@@ -144,19 +144,19 @@ def test_a_dim_face_detection_takes_the_dim_cascade(synth_model, synth_data):
     gray = cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY).astype(np.float32) if images[0].ndim == 3 else \
         images[0].astype(np.float32)
     lc = synth_model.landmark_cascade
-    still = replace(lc, regressors=np.zeros_like(lc.regressors), biases=np.zeros_like(lc.biases),
+    inert = replace(lc, regressors=np.zeros_like(lc.regressors), biases=np.zeros_like(lc.biases),
                     shape_regressors=np.zeros_like(lc.shape_regressors), repeats=0)
     searcher = Searcher(synth_model)
     res = searcher.fit(Levels(gray, synth_model.features), _start(synth_model, points[0]), landmarks=False)
     r = searcher.factors(res.p)[-1]
     s = signal_to_noise(Levels(gray, synth_model.features).resampled(r), r, res.landmarks)
-    dim, clear = (Searcher(replace(synth_model, dim_cascade=still, soft_cascade=None, dim_below=b))
+    dim, clear = (Searcher(replace(synth_model, dim_cascade=inert, soft_cascade=None, dim_below=b))
                   for b in (s + 0.01, s - 0.01))
     levels = Levels(gray, synth_model.features)
-    assert np.array_equal(dim.refine_landmarks(levels, res, r, detect=True).landmarks, res.landmarks)
+    assert np.array_equal(dim.refine_landmarks(levels, res, r, still=True).landmarks, res.landmarks)
     moved = np.abs(dim.refine_landmarks(levels, res, r).landmarks - res.landmarks).max()
     assert moved > 0.01  # a tracked frame's fit: the landmark cascade
-    assert np.abs(clear.refine_landmarks(levels, res, r, detect=True).landmarks - res.landmarks).max() > 0.01
+    assert np.abs(clear.refine_landmarks(levels, res, r, still=True).landmarks - res.landmarks).max() > 0.01
 
 
 def _start(model, pts):

@@ -285,12 +285,11 @@ class Tracker:
 
     def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0, crop=None,
                 landmarks: bool = True, last: int = 0, soft: bool | None = None,
-                dim: bool | None = None, detect: bool = False) -> tuple[FitResult, float]:
+                dim: bool | None = None) -> tuple[FitResult, float]:
         """Search from each start (n_params,) on one crop of the frame around them all (exact: the model is
         translation-equivariant), keep the most confident fit and run the landmark cascade on it (unless
         ``landmarks`` is False; its ``last`` stages only when given, ``Searcher.refine_landmarks``, as for a dim
-        face if ``dim``, as for a still's detection if ``detect`` while ``fit_still`` runs: ``Model.dim_cascade``);
-        ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples
+        face if ``dim``, and while ``fit_still`` runs as for a still's: ``Model.dim_cascade``); ``crop`` (from ``crop``) reuses a crop and its levels; ``soft`` picks the couples
         (``Searcher.fit``).
         Returns (result in frame coordinates, seconds spent on the crop's feature images)."""
         t0 = time.perf_counter()
@@ -312,7 +311,7 @@ class Tracker:
                 best = res
         if landmarks:
             best = self.searcher.refine_landmarks(levels, best, factors[-1] if len(crop_starts) == 1 else None,
-                                                  last=last, dim=dim, detect=detect and self._still)
+                                                  last=last, dim=dim, still=self._still)
         p = best.p.copy()
         p[4:6] += off
         return replace(best, p=p, landmarks=best.landmarks + off, vertices=best.vertices + off), t_pyr
@@ -325,16 +324,14 @@ class Tracker:
 
     def fit_starts(self, image: np.ndarray, starts: list, shape_params=None) -> tuple[FitResult, float]:
         """The most confident fit from several starts on one crop, then one more search from it on the same crop
-        and levels (``refine_detection``): a detection's fit (``fit_detection``, ``rescue``; the landmark cascade
-        as for one, ``fit_roi``'s ``detect``). Returns (fit, seconds spent on the crop and its levels)."""
+        and levels (``refine_detection``): a detection's fit (``fit_detection``, ``rescue``). Returns (fit,
+        seconds spent on the crop and its levels)."""
         t0 = time.perf_counter()
         crop = self.crop(image, starts)
         t_crop = time.perf_counter() - t0
-        res, t_pyr = self.fit_roi(image, starts, shape_params, crop=crop, landmarks=not self.config.refine_detection,
-                                  detect=True)
+        res, t_pyr = self.fit_roi(image, starts, shape_params, crop=crop, landmarks=not self.config.refine_detection)
         if self.config.refine_detection:
-            res, t_more = self.fit_roi(image, [res.p], shape_params, first=self.config.skip_coarse, crop=crop,
-                                       detect=True)
+            res, t_more = self.fit_roi(image, [res.p], shape_params, first=self.config.skip_coarse, crop=crop)
             t_pyr += t_more
         return res, t_crop + t_pyr
 
@@ -409,27 +406,26 @@ class Tracker:
 
     def search_from(self, image: np.ndarray, start: np.ndarray, shape_params=None, *,
                     last: int | None = None, soft: bool | None = None, dim: bool | None = None,
-                    margin: float | None = None, detect: bool = False) -> tuple[FitResult, float]:
+                    margin: float | None = None) -> tuple[FitResult, float]:
         """A tracked frame's search: from ``start`` (the search vector ``tracked_start`` made) with the coarsest
         ``skip_tracked`` couples skipped, searched again with the coarser couple too when its confidence is below
         ``coarser_below`` (the more confident fit kept), then the landmark cascade's last ``last`` stages
         (``landmark_stages_tracked`` by default); with the soft couples if ``soft`` (the fit it starts from was a
         soft face's, ``FitResult.soft``), the landmark cascade as for a dim face if ``dim`` (the fit it starts from
         was a dim face's, ``FitResult.dim``; None: as the face looks). Returns (fit, seconds spent on the crop and
-        its levels). ``margin``: the crop's (``crop``; default ``roi_margin``). ``detect``: the landmark cascade as
-        for a detection's fit (``fit_roi``; ``landmark_pass``)."""
+        its levels). ``margin``: the crop's (``crop``; default ``roi_margin``)."""
         cfg = self.config
         last = cfg.landmark_stages_tracked if last is None else last
         t0 = time.perf_counter()
         crop = self.crop(image, [start], margin)
         t_pyr = time.perf_counter() - t0
         res, t = self.fit_roi(image, [start], shape_params, first=self.skip_tracked, crop=crop, last=last, soft=soft,
-                              dim=dim, detect=detect)
+                              dim=dim)
         t_pyr += t
         if (res.confidence < cfg.coarser_below or res.dim) and self.skip_tracked > cfg.skip_coarse:
             # the same start on the same crop and levels, with the coarser couple too
             alt, t = self.fit_roi(image, [start], shape_params, first=cfg.skip_coarse, crop=crop, last=last,
-                                  soft=soft, dim=dim, detect=detect)
+                                  soft=soft, dim=dim)
             t_pyr += t
             if alt.confidence > res.confidence or (res.dim and alt.confidence >= res.confidence):
                 res = alt
@@ -615,7 +611,7 @@ class Tracker:
         ``image`` as ``track`` takes."""
         if frame.image is None:
             return next(iter(self.track([frame])))
-        self._still = True  # its detections' fits of a dim face take the model's cascade for those (``fit_roi``)
+        self._still = True  # its fits of a dim face take the model's cascade for those (``fit_roi``)
         try:
             return self._fit_still(frame, mirror, agree, agree_dim)
         finally:
@@ -690,8 +686,7 @@ class Tracker:
         its levels)."""
         if not self.config.landmark_pass or res.confidence < self.config.min_confidence:
             return res, 0.0
-        alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0, soft=res.soft, dim=res.dim,
-                                  detect=True)
+        alt, t = self.search_from(image, self.tracked_start(res), shape_params, last=0, soft=res.soft, dim=res.dim)
         return (alt if alt.confidence >= res.confidence else res), t
 
     # -- a video ---------------------------------------------------------------------------------------

@@ -335,11 +335,12 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
     return np.array(out).reshape(-1, 68, 2), np.array(idx, np.int64)
 
 
-def _blurred_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int, fits: np.ndarray,
-                    owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator, *,
-                    make: Callable | None = None, dim_below: float = 0.0) -> tuple:
-    """Gaussian-blurred copies of a random ``share`` of the sharp training images (sigma drawn in ``eye_range``
-    outer eye-corner distances; a ``share`` above 1: that many copies per image) for a landmark cascade: each
+def _degraded_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int,
+                     fits: np.ndarray, owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator, *,
+                     make: Callable | None = None, dim_below: float = 0.0) -> tuple:
+    """Degraded copies (Gaussian-blurred unless ``make`` says otherwise) of a random ``share`` of the sharp
+    training images (sigma drawn in ``eye_range`` outer eye-corner distances; a ``share`` above 1: that many
+    copies per image) for a landmark cascade: each
     copy's grey image at the finest couple's factor and that factor, the sharp image it copies, and, as its
     starts, the search's own fit of the copy from the sharp image's Haar box (where the search really leaves a
     blurred face, farther off than on the sharp one; copies without a box take the sharp image's fits
@@ -787,7 +788,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                       progress=progress)
         searching = replace(model, validator=validator)
         if config.landmark_blur_share > 0:  # blurred copies: the sharp image's truth and group, their own fits
-            b_images, b_scales, b_of, b_fits, b_owner = _blurred_copies(
+            b_images, b_scales, b_of, b_fits, b_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.landmark_blur_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 4))
             lmk_images, lmk_scales = lmk_images + b_images, lmk_scales + b_scales
@@ -798,7 +799,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,
             rng=np.random.default_rng(config.seed + 3), **lmk_kw)
         if config.soft_share > 0:  # a cascade of its own for soft faces, on blurred copies alone
-            b_images, b_scales, b_of, b_fits, b_owner = _blurred_copies(
+            b_images, b_scales, b_of, b_fits, b_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.soft_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 6))
             soft_cascade, soft_record = learn_landmark_cascade(
@@ -810,7 +811,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                                                np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_l + b_owner])
             soft_record.append({"gate": gate})  # after the stages' records
         if config.dim_cascade > 0 and config.dim_validator > 0 and config.landmark_validator:
-            d_images, d_scales, d_of, d_fits, d_owner = _blurred_copies(
+            d_images, d_scales, d_of, d_fits, d_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.dim_cascade, config.landmark_blur_eye, np.random.default_rng(config.seed + 11), make=dim_copy,
                 dim_below=2 * config.dim_validator)

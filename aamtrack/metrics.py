@@ -54,6 +54,8 @@ __all__ = [
     "MEDIAPIPE_TO_IBUG",
     "MEDIAPIPE_SUBSET",
     "PIXEL_ORIGIN",
+    "from_dlib",
+    "from_normalised",
     "ced",
     "eye_distance",
     "jitter",
@@ -67,6 +69,24 @@ __all__ = [
 #: 1-based convention (``aamtrack.io.pts`` states it); OpenCV's is 0. Moving points with an image transformed by
 #: OpenCV: subtract it, transform, add it back.
 PIXEL_ORIGIN = 1.0
+
+
+def from_dlib(points) -> np.ndarray:
+    """Points as dlib gives them (``full_object_detection.part``: 0-based pixel indices, the top-left pixel's
+    centre at 0, as OpenCV's) in the package's convention (``PIXEL_ORIGIN``), float64. cap12's reference
+    ``cap12_edit_dlib68.npz`` is dlib's output: read as it is, it sat 0.84 / 0.76 px up and left of aamtrack's
+    points (mean x / y difference over the 1337 frames, shipped 3D model), and dlib's own points on helen_test
+    fitted the human labels best about 0.75 px further right and down (mean NME 0.0281 as given, 0.0270 one pixel
+    on, 0.0315 two pixels on)."""
+    return np.asarray(points, np.float64) + PIXEL_ORIGIN
+
+
+def from_normalised(points, width: float, height: float) -> np.ndarray:
+    """Points in image coordinates normalised to 0..1 over the image's extent (MediaPipe's ``landmark.x``,
+    ``.y``: 0 at the left edge of the first pixel, 1 at the right edge of the last) in the package's pixels: the
+    first pixel's centre, normalised 0.5 / width, is ``PIXEL_ORIGIN``. Only x and y are taken."""
+    xy = np.asarray(points, np.float64)[..., :2]
+    return xy * np.array([float(width), float(height)]) + (PIXEL_ORIGIN - 0.5)
 
 #: iBUG-68 outer eye corners (0-based): 36 on the image left (subject's right eye), 45 on the image right.
 IBUG_RIGHT_EYE_OUTER = 36

@@ -53,6 +53,8 @@ if str(REPO) not in sys.path:
 from aamtrack.metrics import (  # noqa: E402
     CED_THRESHOLDS,
     MEDIAPIPE_SUBSET,
+    from_dlib,
+    from_normalised,
     jitter,
     mediapipe_to_ibug,
     nme,
@@ -334,13 +336,12 @@ def video_references(video: Path) -> tuple[np.ndarray | None, np.ndarray | None,
     path68 = video.with_name(video.stem + "_dlib68.npz")
     path_mp = video.with_name(video.stem + "_mediapipe468.npz")
     if path68.exists():
-        ref68 = np.load(path68)["landmarks"].astype(np.float64)
+        ref68 = from_dlib(np.load(path68)["landmarks"])  # dlib's 0-based pixels -> the package's
     else:
         notes.append(f"no 68-point reference ({path68} not found)")
     if path_mp.exists():
         with np.load(path_mp) as mp:
-            scale = np.array([float(mp["width"]), float(mp["height"])])
-            ref_mp = mediapipe_to_ibug(mp["landmarks_norm"][..., :2].astype(np.float64) * scale)
+            ref_mp = mediapipe_to_ibug(from_normalised(mp["landmarks_norm"], mp["width"], mp["height"]))
     else:
         notes.append(f"no MediaPipe reference ({path_mp} not found)")
     return ref68, ref_mp, notes

@@ -17,7 +17,7 @@ try:
 except ImportError:  # pragma: no cover - the harness needs OpenCV for colour conversion
     cv2 = None
 
-from aamtrack.metrics import MEDIAPIPE_SUBSET, mediapipe_to_ibug
+from aamtrack.metrics import MEDIAPIPE_SUBSET, PIXEL_ORIGIN, from_dlib, mediapipe_to_ibug
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
 _MAX_SIZE_CHANGE = 1.4  # dlib_tracking: lost when the landmark box grows or shrinks more than this per frame
@@ -36,7 +36,8 @@ class PeerRun:
     """Output of one peer on one sequence.
 
     name : str
-    landmarks : (n_frames, 68, 2) float64, pixels; NaN where nothing was found (or no iBUG counterpart)
+    landmarks : (n_frames, 68, 2) float64, the package's pixels (``aamtrack.metrics.PIXEL_ORIGIN``); NaN where
+        nothing was found (or no iBUG counterpart)
     times : (n_frames,) float64, seconds of landmarking work per frame
     setup_s : float, seconds to load the model / build the graph (not in ``times``)
     detector_runs : int, frames on which a face detector ran (dlib; 0 for MediaPipe, whose graph decides itself)
@@ -81,6 +82,7 @@ def _gray(frame: np.ndarray) -> np.ndarray:
 
 
 def _shape_array(shape) -> np.ndarray:
+    """dlib's 68 points in its own 0-based pixels (the runners return them in the package's: ``from_dlib``)."""
     return np.array([(p.x, p.y) for p in shape.parts()], dtype=np.float64)
 
 
@@ -115,7 +117,8 @@ def dlib_detect_every_frame(frames, *, upsample: int = 0) -> PeerRun:
         times.append(time.perf_counter() - t)
         landmarks.append(points)
     n = len(landmarks)
-    return PeerRun(f"dlib detect every frame (up{upsample})", _stack(landmarks, 68), np.array(times), setup_s, n)
+    return PeerRun(f"dlib detect every frame (up{upsample})", from_dlib(_stack(landmarks, 68)), np.array(times),
+                   setup_s, n)
 
 
 def _landmark_box(points: np.ndarray) -> tuple[float, float, float]:
@@ -179,8 +182,8 @@ def dlib_tracking(frames, *, upsample: int = 0) -> PeerRun:
         times.append(time.perf_counter() - t)
         prev = points
         landmarks.append(points if points is not None else np.full((68, 2), np.nan))
-    return PeerRun(f"dlib tracking (up{upsample})", _stack(landmarks, 68), np.array(times), setup_s, detector_runs,
-                   tracking=True)
+    return PeerRun(f"dlib tracking (up{upsample})", from_dlib(_stack(landmarks, 68)), np.array(times), setup_s,
+                   detector_runs, tracking=True)
 
 
 # ------------------------------------------------------------------------------------------------ MediaPipe
@@ -222,6 +225,7 @@ def mediapipe_face_mesh(frames, *, static: bool = False) -> PeerRun:
                 h, w = frame.shape[:2]
                 lms = result.multi_face_landmarks[0].landmark
                 points = np.array([(p.x * w, p.y * h, p.z * w) for p in lms], dtype=np.float64)
+                points[:, :2] += PIXEL_ORIGIN - 0.5  # normalised over the image's extent -> the package's pixels
             else:
                 points = np.full((468, 3), np.nan)
             times.append(time.perf_counter() - t)

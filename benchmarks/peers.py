@@ -84,6 +84,8 @@ if str(REPO) not in sys.path:
 from aamtrack.metrics import (  # noqa: E402
     MEDIAPIPE_SUBSET,
     MEDIAPIPE_TO_IBUG,
+    from_dlib,
+    from_normalised,
     jitter,
     mediapipe_to_ibug,
     nme,
@@ -262,10 +264,9 @@ def read_video(path) -> list[np.ndarray]:
 def load_references(data_dir=DATA) -> tuple[np.ndarray, np.ndarray]:
     """cap12's dlib reference (n, 68, 2) and MediaPipe reference (n, 468, 2), both in pixels, float64."""
     data_dir = Path(data_dir)
-    ref68 = np.load(data_dir / DLIB_REF)["landmarks"].astype(np.float64)
+    ref68 = from_dlib(np.load(data_dir / DLIB_REF)["landmarks"])  # dlib's 0-based pixels -> the package's
     with np.load(data_dir / MEDIAPIPE_REF) as mp:
-        scale = np.array([float(mp["width"]), float(mp["height"])])
-        ref_mp = mp["landmarks_norm"][..., :2].astype(np.float64) * scale
+        ref_mp = from_normalised(mp["landmarks_norm"], mp["width"], mp["height"])
     return ref68, ref_mp
 
 

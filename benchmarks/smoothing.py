@@ -43,7 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from aamtrack.metrics import eye_distance, jitter, nme, still_frames  # noqa: E402
+from aamtrack.metrics import eye_distance, from_dlib, jitter, nme, still_frames  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 MAX_LAG = 5
@@ -197,7 +197,7 @@ def main(argv=None) -> int:
     if not args.video.exists() or not ref_path.exists():
         print(f"needs {args.video} and {ref_path}", file=sys.stderr)
         return 1
-    ref = np.load(ref_path)["landmarks"].astype(np.float64)
+    ref = from_dlib(np.load(ref_path)["landmarks"])  # dlib's 0-based pixels -> the package's
     results, wall = track_results(args.model, args.video)
     ref = ref[:len(results)]
     still, moving = still_frames(ref), moving_frames(ref)

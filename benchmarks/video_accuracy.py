@@ -20,7 +20,7 @@ import numpy as np
 
 from aamtrack.commands.run import track_file
 from aamtrack.io.csvout import read_tracking_csv
-from aamtrack.metrics import nme
+from aamtrack.metrics import from_dlib, nme
 
 
 def evaluate(model: Path, video: Path, ref: Path) -> dict:
@@ -28,7 +28,7 @@ def evaluate(model: Path, video: Path, ref: Path) -> dict:
         summary = track_file(str(video), model_path=model, out_dir=Path(tmp), progress=False)
         cols = read_tracking_csv(summary["outputs"]["csv"])
     pred = np.stack([np.column_stack([cols[f"x_{i}"], cols[f"y_{i}"]]) for i in range(68)], axis=1)
-    reference = np.load(ref)["landmarks"].astype(float)
+    reference = from_dlib(np.load(ref)["landmarks"])  # dlib's 0-based pixels -> the package's
     err = nme(pred, reference)
     ok = cols["success"] == 1
     e = err[ok]

@@ -7,7 +7,10 @@ from aamtrack.metrics import (
     CED_THRESHOLDS,
     MEDIAPIPE_SUBSET,
     MEDIAPIPE_TO_IBUG,
+    PIXEL_ORIGIN,
     ced,
+    from_dlib,
+    from_normalised,
     jitter,
     mediapipe_to_ibug,
     nme,
@@ -175,9 +178,9 @@ def test_nme_subset_hand_example():
 
 @pytest.mark.shared_data
 def test_mediapipe_map_lands_on_dlib_reference_cap12():
-    dlib_ref = np.load(shared_path("videos", "cap12_edit_dlib68.npz"))["landmarks"].astype(np.float64)
+    dlib_ref = from_dlib(np.load(shared_path("videos", "cap12_edit_dlib68.npz"))["landmarks"])
     mp = np.load(shared_path("videos", "cap12_edit_mediapipe468.npz"))
-    mp_px = mp["landmarks_norm"][..., :2] * np.array([float(mp["width"]), float(mp["height"])])
+    mp_px = from_normalised(mp["landmarks_norm"], mp["width"], mp["height"])
     sub = mediapipe_to_ibug(mp_px)
     eye_gap = np.linalg.norm(dlib_ref[:, 45] - dlib_ref[:, 36], axis=-1)  # about 65 px on cap12
     dist = np.linalg.norm(sub - dlib_ref[:, list(MEDIAPIPE_SUBSET)], axis=-1) / eye_gap[:, None]
@@ -186,3 +189,17 @@ def test_mediapipe_map_lands_on_dlib_reference_cap12():
     assert (median < 0.05).all(), dict(zip(MEDIAPIPE_SUBSET, median.round(3)))
     # and the subset NME of the dlib track against MediaPipe is small (the two agree to about 0.02-0.03)
     assert np.mean(nme_subset(dlib_ref, sub)) < 0.04
+
+
+def test_reference_conventions_land_on_the_package_pixels():
+    """dlib's 0-based pixel indices and MediaPipe's normalised coordinates in the package's 1-based pixels: the
+    top-left pixel's centre is PIXEL_ORIGIN in both, the bottom-right one's (w - 1 + PIXEL_ORIGIN, ...)."""
+    w, h = 400, 300
+    assert np.allclose(from_dlib([[0, 0], [w - 1, h - 1]]), [[PIXEL_ORIGIN, PIXEL_ORIGIN],
+                                                           [w - 1 + PIXEL_ORIGIN, h - 1 + PIXEL_ORIGIN]])
+    centres = np.array([[0.5 / w, 0.5 / h, 0.3], [(w - 0.5) / w, (h - 0.5) / h, -0.1]])  # (x, y, z), z dropped
+    out = from_normalised(centres, w, h)
+    assert out.shape == (2, 2)
+    assert np.allclose(out, [[PIXEL_ORIGIN, PIXEL_ORIGIN], [w - 1 + PIXEL_ORIGIN, h - 1 + PIXEL_ORIGIN]])
+    # the image's own edges lie half a pixel outside its outer pixels' centres
+    assert np.allclose(from_normalised([[0.0, 1.0]], w, h), [[PIXEL_ORIGIN - 0.5, h - 1 + PIXEL_ORIGIN + 0.5]])

@@ -224,16 +224,12 @@ def save_model(model: Model, path: str | Path) -> None:
             lc.ref, lc.regressors.astype(np.float16), lc.biases
         arrays["landmarks/basis_mean"], arrays["landmarks/basis"] = lc.basis_mean, lc.basis
         arrays["landmarks/shape_regressors"] = lc.shape_regressors.astype(np.float16)
-    sc = model.soft_cascade
-    if sc is not None:  # its reference shape and descriptor components are the landmark cascade's
-        arrays["soft_landmarks/regressors"], arrays["soft_landmarks/biases"] = sc.regressors.astype(np.float16), \
-            sc.biases
-        arrays["soft_landmarks/shape_regressors"] = sc.shape_regressors.astype(np.float16)
-    dc = model.dim_cascade
-    if dc is not None:  # as the soft one: the landmark cascade's reference shape and descriptor components
-        arrays["dim_landmarks/regressors"], arrays["dim_landmarks/biases"] = dc.regressors.astype(np.float16), \
-            dc.biases
-        arrays["dim_landmarks/shape_regressors"] = dc.shape_regressors.astype(np.float16)
+    sc, dc = model.soft_cascade, model.dim_cascade
+    for prefix, other in (("soft_landmarks", sc), ("dim_landmarks", dc)):
+        if other is not None:  # its reference shape and descriptor components are the landmark cascade's
+            arrays[f"{prefix}/regressors"], arrays[f"{prefix}/biases"] = other.regressors.astype(np.float16), \
+                other.biases
+            arrays[f"{prefix}/shape_regressors"] = other.shape_regressors.astype(np.float16)
     lv = model.landmark_validator
     if lv is not None:
         arrays["landmark_validator/weights"], arrays["landmark_validator/mean"] = lv.weights, lv.mean
@@ -570,11 +566,16 @@ def _soft_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None) ->
     if lc is None:
         c.fail("a soft landmark cascade without a landmark cascade")
     above = _threshold(c, spec, "above", 0.0, 1.0, "soft landmark cascade")
-    shape = lc.regressors.shape
-    return replace(lc, regressors=c.array("soft_landmarks/regressors", np.float32, shape),
-                   biases=c.array("soft_landmarks/biases", np.float64, lc.biases.shape),
-                   shape_regressors=c.array("soft_landmarks/shape_regressors", np.float32,
-                                            lc.shape_regressors.shape)), above
+    return _cascade_like(c, "soft_landmarks", lc), above
+
+
+def _cascade_like(c: _Checker, prefix: str, lc: LandmarkCascade, **changes) -> LandmarkCascade:
+    """The landmark cascade ``lc`` with the regressors stored under ``prefix`` (a cascade that shares its
+    reference shape and descriptor components: the soft and the dim faces' ones), and ``changes``."""
+    return replace(lc, regressors=c.array(f"{prefix}/regressors", np.float32, lc.regressors.shape),
+                   biases=c.array(f"{prefix}/biases", np.float64, lc.biases.shape),
+                   shape_regressors=c.array(f"{prefix}/shape_regressors", np.float32, lc.shape_regressors.shape),
+                   **changes)
 
 
 def _dim_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None, dim: Validator | None):
@@ -583,10 +584,7 @@ def _dim_cascade(c: _Checker, spec: dict | None, lc: LandmarkCascade | None, dim
         return None
     if lc is None or dim is None:
         c.fail("a landmark cascade for dim faces without a landmark cascade and a validator for dim faces")
-    return replace(lc, regressors=c.array("dim_landmarks/regressors", np.float32, lc.regressors.shape),
-                   biases=c.array("dim_landmarks/biases", np.float64, lc.biases.shape),
-                   shape_regressors=c.array("dim_landmarks/shape_regressors", np.float32,
-                                            lc.shape_regressors.shape), repeats=0)
+    return _cascade_like(c, "dim_landmarks", lc, repeats=0)
 
 
 __all__ = ["FORMAT_VERSION", "N_POSE", "STAT_NAMES", "Couple", "Model", "Texture", "Validator", "load_model", "save_model"]

@@ -88,6 +88,7 @@ def from_normalised(points, width: float, height: float) -> np.ndarray:
     xy = np.asarray(points, np.float64)[..., :2]
     return xy * np.array([float(width), float(height)]) + (PIXEL_ORIGIN - 0.5)
 
+
 #: iBUG-68 outer eye corners (0-based): 36 on the image left (subject's right eye), 45 on the image right.
 IBUG_RIGHT_EYE_OUTER = 36
 IBUG_LEFT_EYE_OUTER = 45

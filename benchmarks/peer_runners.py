@@ -17,7 +17,7 @@ try:
 except ImportError:  # pragma: no cover - the harness needs OpenCV for colour conversion
     cv2 = None
 
-from aamtrack.metrics import MEDIAPIPE_SUBSET, PIXEL_ORIGIN, from_dlib, mediapipe_to_ibug
+from aamtrack.metrics import MEDIAPIPE_SUBSET, from_dlib, from_normalised, mediapipe_to_ibug
 
 _SUBSET = list(MEDIAPIPE_SUBSET)
 _MAX_SIZE_CHANGE = 1.4  # dlib_tracking: lost when the landmark box grows or shrinks more than this per frame
@@ -224,8 +224,8 @@ def mediapipe_face_mesh(frames, *, static: bool = False) -> PeerRun:
             if result.multi_face_landmarks:
                 h, w = frame.shape[:2]
                 lms = result.multi_face_landmarks[0].landmark
-                points = np.array([(p.x * w, p.y * h, p.z * w) for p in lms], dtype=np.float64)
-                points[:, :2] += PIXEL_ORIGIN - 0.5  # normalised over the image's extent -> the package's pixels
+                points = np.array([(p.x, p.y, p.z * w) for p in lms], dtype=np.float64)
+                points[:, :2] = from_normalised(points, w, h)  # normalised over the image's extent -> pixels
             else:
                 points = np.full((468, 3), np.nan)
             times.append(time.perf_counter() - t)

@@ -511,15 +511,18 @@ class Aamtrack:
         self.name = f"aamtrack {model.kind.upper()}"
         self._tracker = Tracker(model)
 
+    def _results(self, images) -> list:
+        return list(self._tracker.track(_Frame(i, i / FPS, im) for i, im in enumerate(images)))
+
     def track(self, images):
-        return self.track_smoothed(images)[0]
+        return _collect(self._results(images))
 
     def track_smoothed(self, images):
         """``track``'s (success, landmarks, confidence) and the landmarks (n, 68, 2) as ``aamtrack run`` writes
         them by default, One-Euro-smoothed (``aamtrack.track.smooth.smooth_results``)."""
         from aamtrack.track.smooth import smooth_results
 
-        results = list(self._tracker.track(_Frame(i, i / FPS, im) for i, im in enumerate(images)))
+        results = self._results(images)
         return _collect(results), _collect(smooth_results(results))[1]
 
     def fit_each(self, images):

@@ -14,7 +14,14 @@ the previous frame (from the timestamps)::
 
 This module applies it to a whole face at once: one speed per frame, the mean over the 68 landmarks of
 ``|dx_hat|`` divided by the face width (the width of the landmarks' bounding box), so ``speed`` is in face widths
-per second and the parameters do not depend on the image size. The same ``alpha(fc)`` then filters the landmarks,
+per second and the parameters do not depend on the image size. With ``follow_jumps`` (default) the speed is at
+least the raw speed of the landmarks' centroid (``|mean(dx)|``, not low-passed): the filtered speed reaches a
+sudden move of the whole face only a frame or two late (``d_cutoff``), so the first frames of a camera shake or a
+quick turn were held back, while the centroid's raw speed sees the move at once and hardly sees the points' own
+noise (which averages out over 68 points). Measured (``benchmarks/smoothing.py``; the robustness suite's video
+rows, cap12 3D, smoothed NME minus raw, 2026-11-29): shake +0.0076 -> +0.0025, clean +0.0015 -> +0.0011 (jitter
+0.075 -> 0.078 px against 0.169 raw), dim_small -0.0013 -> -0.0014; raising ``beta`` to 25 instead, for the same
+clean jitter (0.080), left shake at +0.0057. The same ``alpha(fc)`` then filters the landmarks,
 the mesh vertices, the pose (rotation, translation, scale), the 3D landmarks and the animation units, so
 everything written for a frame stays consistent (an overlay's mesh and axes sit on its landmarks). Shape units
 (held per person) pass through.
@@ -59,11 +66,14 @@ class SmoothConfig:
     min_cutoff : float, Hz -- cutoff at rest: lower is smoother when still, with more lag on slow motion.
     beta : float, Hz per (face width / s) -- how fast the cutoff rises with speed: higher is less lag in motion.
     d_cutoff : float, Hz -- cutoff of the low-pass on the velocity that drives the cutoff.
+    follow_jumps : bool -- the speed is at least the landmarks' centroid's raw speed (``smooth_results``), so a
+        sudden move of the whole face (camera shake, a quick turn) opens the filter at once.
     """
 
     min_cutoff: float = 0.02
     beta: float = 20.0
     d_cutoff: float = 4.0
+    follow_jumps: bool = True
 
     def __post_init__(self):
         if not (self.min_cutoff > 0 and self.d_cutoff > 0 and self.beta >= 0):
@@ -81,9 +91,10 @@ class OneEuroFilter:
     past, so the next value passes through unchanged. State lives on the object: one filter per signal.
     """
 
-    def __init__(self, config: SmoothConfig = SmoothConfig(), speed=None):
+    def __init__(self, config: SmoothConfig = SmoothConfig(), speed=None, jump=None):
         self.config = config
         self.speed = speed or (lambda dx, x: float(np.abs(dx).mean()))
+        self.jump = jump  # (raw dx, x) -> a speed the cutoff follows at once, unfiltered; None: none
         self.reset()
 
     def reset(self) -> None:
@@ -102,7 +113,10 @@ class OneEuroFilter:
         dx = (x - self.x_prev) / dt
         self.x_prev = x.copy()
         self.dx_hat = self.dx_hat + _alpha(cfg.d_cutoff, dt) * (dx - self.dx_hat)
-        a = _alpha(cfg.min_cutoff + cfg.beta * self.speed(self.dx_hat, x), dt)
+        speed = self.speed(self.dx_hat, x)
+        if self.jump is not None:
+            speed = max(speed, self.jump(dx, x))
+        a = _alpha(cfg.min_cutoff + cfg.beta * speed, dt)
         self.x_hat = self.x_hat + a * (x - self.x_hat)
         self.t = t
         return self.x_hat.copy(), a
@@ -112,6 +126,12 @@ def _face_speed(dx_landmarks: np.ndarray, landmarks: np.ndarray) -> float:
     """Mean landmark speed in face widths per second."""
     width = float(np.ptp(landmarks[:, 0]))
     return float(np.linalg.norm(dx_landmarks, axis=1).mean()) / max(width, 1.0)
+
+
+def _centroid_speed(dx_landmarks: np.ndarray, landmarks: np.ndarray) -> float:
+    """Speed of the landmarks' centroid in face widths per second (``SmoothConfig.follow_jumps``)."""
+    width = float(np.ptp(landmarks[:, 0]))
+    return float(np.linalg.norm(dx_landmarks.mean(axis=0))) / max(width, 1.0)
 
 
 def smooth_results(results: Iterable[FrameResult], config: SmoothConfig = SmoothConfig()) -> Iterator[FrameResult]:
@@ -128,7 +148,7 @@ def smooth_results(results: Iterable[FrameResult], config: SmoothConfig = Smooth
     FrameResult
         One per input, same frame, status, confidence and timings. Unsuccessful ones are passed through.
     """
-    landmark_filter = OneEuroFilter(config, speed=_face_speed)
+    landmark_filter = OneEuroFilter(config, speed=_face_speed, jump=_centroid_speed if config.follow_jumps else None)
     state = {}          # field -> smoothed value of the previous successful frame
     gap = True          # no usable predecessor: the next successful frame resets the filter
     for res in results:

@@ -103,3 +103,21 @@ def test_one_euro_filter_basics():
     assert a == pytest.approx(expected) and np.allclose(y, expected)
     f.reset()
     assert np.array_equal(f.filter(np.full(3, 5.0), 1.0)[0], np.full(3, 5.0))
+
+
+def test_a_sudden_move_of_the_whole_face_is_followed_at_once():
+    rng = np.random.default_rng(SEED + 2)
+    shape = _shape()
+    jump = 0.05 * WIDTH  # a camera shake of 5% of the face's width between two frames
+    truth = np.stack([shape + [jump if i >= 40 else 0.0, 0.0] for i in range(60)])
+    noisy = truth + rng.normal(0.0, 0.3, size=truth.shape)
+    results = [_result(i, noisy[i], "detected" if i == 0 else "tracked") for i in range(60)]
+    errors = {}
+    for follow in (True, False):
+        out = list(smooth_results(results, SmoothConfig(follow_jumps=follow)))
+        errors[follow] = float(np.linalg.norm(out[40].landmarks - truth[40], axis=-1).mean())
+    assert errors[True] < 1.0  # px: within a fifth of the 5 px jump on the jump's frame
+    assert errors[True] < 0.7 * errors[False]  # the low-passed speed alone holds the face back
+    still = list(smooth_results(results[:40]))  # before the jump: the jitter is still halved
+    lm = np.stack([r.landmarks for r in still])
+    assert _jitter(lm[10:]) < 0.5 * _jitter(noisy[10:40])

@@ -17,7 +17,7 @@ from tqdm import tqdm
 from ..errors import AamtrackError, InputError
 from ..io.atomic import OutputSet
 from ..io.csvout import TrackingCsvWriter
-from ..io.frames import ImageFrames, display_name, open_frames, read_image
+from ..io.frames import IMAGE_SUFFIXES, ImageFrames, display_name, open_frames, read_image
 from ..io.pts import write_pts
 from ..io.summary import write_summary_json
 from ..model import load_model
@@ -103,7 +103,13 @@ def fit_images(input_: str, *, model_path: Path, out_dir: Path, pts: bool = Fals
     processes, with the same outputs (each image is fitted on its own). The input and the output folder
     are checked before the work, and all outputs are committed together at the end (``io.atomic.OutputSet``)."""
     t_start = time.perf_counter()
-    source = open_frames(input_)
+    try:
+        source = open_frames(input_)
+    except InputError:
+        path = Path(input_)
+        if path.is_file() and path.suffix.lower() not in IMAGE_SUFFIXES:  # tried as a video: say what fit wanted
+            raise InputError(f"{display_name(input_)}: not an image OpenCV can read (nor a video)") from None
+        raise
     if not isinstance(source, ImageFrames):
         source.close()
         raise InputError(f"{display_name(input_)}: a video; 'aamtrack fit' takes images "

@@ -42,9 +42,11 @@ def test_fit_folder(tmp_path, stills, model_file, capsys):
 
 
 @pytest.mark.parametrize("make,needle", [(lambda d: d / "missing", "no such file"),
-                                         (lambda d: d / "empty", "no image files")])
+                                         (lambda d: d / "empty", "no image files"),
+                                         (lambda d: d / "notes.txt", "notes.txt: not an image OpenCV can read")])
 def test_fit_bad_input_is_one_line(tmp_path, model_file, capsys, make, needle):
     (tmp_path / "empty").mkdir()
+    (tmp_path / "notes.txt").write_text("not a picture\n")
     out = tmp_path / "out"
     assert main(["fit", str(make(tmp_path)), "--model", str(model_file), "--out-dir", str(out)]) == 1
     err = capsys.readouterr().err.strip().splitlines()

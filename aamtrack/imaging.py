@@ -111,6 +111,17 @@ def thumbnail(image: np.ndarray) -> np.ndarray:
     return t / norm if norm > 1e-3 else np.zeros_like(t)
 
 
+def unsharp(image: np.ndarray, sigma: float, amount: float) -> np.ndarray:
+    """``image + amount * (image - G_sigma * image)`` (unsharp masking, Gaussian sigma in pixels), clipped to the
+    image's integer range; same shape and dtype (``Tracker.fit_still``'s second look at a soft face)."""
+    f = image.astype(np.float32)
+    out = f + amount * (f - cv2.GaussianBlur(f, (0, 0), sigma))
+    if np.issubdtype(image.dtype, np.integer):
+        info = np.iinfo(image.dtype)
+        np.clip(np.rint(out, out=out), info.min, info.max, out=out)
+    return out.astype(image.dtype)
+
+
 def level_factor(face_px: float, couple_face_px: float) -> float:
     """r = min(1, couple_face_px / face_px): the resampling that makes the face ``couple_face_px`` wide."""
     if not np.isfinite(face_px) or face_px <= couple_face_px:

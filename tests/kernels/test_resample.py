@@ -43,3 +43,22 @@ def test_crop_gray32_is_the_crop_s_grey_image():
             got = crop_gray32(image, x0, y0, x1, y1)
             assert got.dtype == np.float32 and got.flags.c_contiguous
             assert np.array_equal(got, to_gray32(image[y0:y1, x0:x1])), (image.shape, x0, y0, x1, y1)
+
+
+def test_unsharp_restores_a_blurred_edge_and_keeps_the_image_type():
+    from aamtrack.imaging import unsharp
+
+    edge = np.zeros((40, 80), np.float32)
+    edge[:, 40:] = 200.0
+    blurred = cv2.GaussianBlur(edge, (0, 0), 3.0)
+    slope = lambda im: float(np.abs(np.diff(im[20].astype(np.float64))).max())  # noqa: E731
+    sharp = unsharp(blurred, 3.0, 2.0)
+    assert sharp.dtype == np.float32 and sharp.shape == blurred.shape
+    ref = blurred + 2.0 * (blurred - cv2.GaussianBlur(blurred, (0, 0), 3.0))  # the formula, written out
+    assert np.allclose(sharp, ref, atol=1e-4)
+    assert slope(sharp) > 1.5 * slope(blurred)  # the edge is steeper again
+    colour = np.repeat(np.clip(1.2 * blurred + 5, 0, 255).astype(np.uint8)[..., None], 3, axis=2)  # 5..245
+    out = unsharp(colour, 3.0, 2.0)
+    assert out.dtype == np.uint8 and out.shape == colour.shape
+    assert out.min() == 0 and out.max() == 255  # overshoot either side of the edge clipped, not wrapped
+    assert np.array_equal(out[..., 0], out[..., 2])  # channels alike in, alike out

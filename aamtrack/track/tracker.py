@@ -618,8 +618,11 @@ class Tracker:
         just was is in a video: the mirror's fit, from its own detection and mirrored patches, is the second
         sighting (helen_test made small, dark and noisy (the robustness suite's dim_small), 3D, /tmp harness: of the
         fits rejected on both sides that agree within 0.03 with both confidences at least 0.2, 17 within NME 0.08
-        and 3 above; fits that disagree were mostly off). ``frame``: an object with ``index``, ``timestamp``,
-        ``image`` as ``track`` takes."""
+        and 3 above; fits that disagree were mostly off).
+
+        An image whose own fit reads soft (a blurred face) is fitted again, all of the above, on the image
+        sharpened (``TrackerConfig.sharpen_soft``), and the more confident accepted result kept. ``frame``: an
+        object with ``index``, ``timestamp``, ``image`` as ``track`` takes."""
         if frame.image is None:
             return next(iter(self.track([frame])))
         self._still = True  # its fits of a dim face take the model's cascade for those (``fit_roi``)

@@ -33,8 +33,8 @@ are. Smoothing runs on the tracker's output only: the tracker itself searches fr
 
 Defaults, chosen on cap12 (the one video with a per-frame reference) with the shipped 3D model
 (``benchmarks/smoothing.py``; README, "Smoothing"): ``min_cutoff = 0.02`` Hz, ``beta = 20`` Hz per (face width / s),
-``d_cutoff = 4`` Hz. There they halve the jitter on the still stretches (0.49x) at 0.3 frame of added lag on the
-moving ones. At rest the cutoff is set mostly by the speed the landmarks' own noise shows (beta times about 0.03
+``d_cutoff = 4`` Hz. There they halve the jitter on the still stretches (0.46x with ``follow_jumps``, 2026-11-29) at 0.05 frame of
+added lag on the moving ones. At rest the cutoff is set mostly by the speed the landmarks' own noise shows (beta times about 0.03
 face widths/s), not by ``min_cutoff``; a faster speed estimate (``d_cutoff`` 4 rather than 2 Hz) is what lowered it. The lag depends on the speed: on a steady
 motion of v face widths per second the cutoff settles at ``min_cutoff + beta v`` and the output trails by
 ``(1 - alpha) / alpha`` frames (at 25 fps: 0.2 frame at 1 face width/s, 0.4 at 0.5, 0.8 at 0.25, 2.0 at 0.1, 3.9 at 0.05; in pixels

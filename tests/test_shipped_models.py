@@ -138,8 +138,8 @@ N_BLURRED = 40  # helen_test photos (about 20 s)
 def test_a_blurred_still_is_looked_at_again_sharpened():
     """``TrackerConfig.sharpen_soft``: helen_test photos blurred by 0.09 outer eye distances (held out; the soft
     face's fits are the soft cascade's), fitted as ``aamtrack fit`` fits them: more of them within NME 0.08 with
-    the sharpened second look than without it, none of the rest worse by much, and a sharp photo never looked at
-    twice (its result the same bits)."""
+    the sharpened second look than without it, and a sharp photo never looked at twice (its result the same
+    bits)."""
     import cv2
     from dataclasses import replace
 
@@ -167,4 +167,3 @@ def test_a_blurred_still_is_looked_at_again_sharpened():
     print(f"blurred helen_test, within NME 0.08: {good[True]} of {len(pairs)} with the second look, "
           f"{good[False]} without")
     assert good[True] >= good[False] + 2
-

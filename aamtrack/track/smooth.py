@@ -122,16 +122,19 @@ class OneEuroFilter:
         return self.x_hat.copy(), a
 
 
+def _face_width(landmarks: np.ndarray) -> float:
+    """The landmarks' x extent in pixels (at least 1): the unit of the filter's speeds."""
+    return max(float(np.ptp(landmarks[:, 0])), 1.0)
+
+
 def _face_speed(dx_landmarks: np.ndarray, landmarks: np.ndarray) -> float:
     """Mean landmark speed in face widths per second."""
-    width = float(np.ptp(landmarks[:, 0]))
-    return float(np.linalg.norm(dx_landmarks, axis=1).mean()) / max(width, 1.0)
+    return float(np.linalg.norm(dx_landmarks, axis=1).mean()) / _face_width(landmarks)
 
 
 def _centroid_speed(dx_landmarks: np.ndarray, landmarks: np.ndarray) -> float:
     """Speed of the landmarks' centroid in face widths per second (``SmoothConfig.follow_jumps``)."""
-    width = float(np.ptp(landmarks[:, 0]))
-    return float(np.linalg.norm(dx_landmarks.mean(axis=0))) / max(width, 1.0)
+    return float(np.linalg.norm(dx_landmarks.mean(axis=0))) / _face_width(landmarks)
 
 
 def smooth_results(results: Iterable[FrameResult], config: SmoothConfig = SmoothConfig()) -> Iterator[FrameResult]:

@@ -257,6 +257,11 @@ class TrackerConfig:
             raise ValueError(f"tracked_start {self.tracked_start!r}: one of {', '.join(TRACKED_STARTS)}")
 
 
+def _summed(a: dict, b: dict) -> dict:
+    """Two results' stage timings (seconds by stage) added stage by stage."""
+    return {k: a.get(k, 0.0) + b.get(k, 0.0) for k in {*a, *b}}
+
+
 class Tracker:
     """Detection, frame-to-frame search, validation and re-detection for one model (see module docstring)."""
 
@@ -634,7 +639,7 @@ class Tracker:
                 sharp = ReplayFrame(frame.index, frame.timestamp,
                                     unsharp(frame.image, cfg.sharpen_soft * max(eye, 1.0), cfg.sharpen_amount))
                 alt = self._fit_still(sharp, mirror, agree, agree_dim)[0]
-                timings = {k: res.timings.get(k, 0.0) + alt.timings.get(k, 0.0) for k in {*res.timings, *alt.timings}}
+                timings = _summed(res.timings, alt.timings)
                 if alt.success and (not res.success or alt.confidence > res.confidence):
                     res = alt
                 res = replace(res, timings=timings)
@@ -660,7 +665,7 @@ class Tracker:
             own = self.detector.find(flipped)
         alt, alt_fit = self._fit_one(ReplayFrame(frame.index, frame.timestamp, flipped),
                                      own if own is not None else mirrored(found, width), time.perf_counter() - t0)
-        timings = {k: res.timings.get(k, 0.0) + alt.timings.get(k, 0.0) for k in {*res.timings, *alt.timings}}
+        timings = _summed(res.timings, alt.timings)
         if alt_fit is None:
             return replace(res, timings=timings), fit
         shape = frame.image.shape[:2]

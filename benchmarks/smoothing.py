@@ -20,7 +20,9 @@ lag
 NME
     Mean NME over the tracked frames (68 points, outer eye corners).
 
-The given parameters are scored with and without ``SmoothConfig.follow_jumps`` ("no jumps"). ``--grid`` also
+The given parameters are scored with and without ``SmoothConfig.follow_jumps`` ("no jumps"), and, when they
+look ahead (``--look-ahead``, default ``SmoothConfig.look_ahead``), forwards only too ("forwards", as
+``aamtrack run --realtime`` smooths). ``--grid`` also
 scores a small grid of (min_cutoff, beta) around the defaults. Targets: jitter at
 most half the unsmoothed figure, lag at most one frame, NME not worse by more than 0.002.
 """
@@ -33,6 +35,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUME
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -187,6 +190,8 @@ def main(argv=None) -> int:
     parser.add_argument("--min-cutoff", type=float, default=defaults.min_cutoff)
     parser.add_argument("--beta", type=float, default=defaults.beta)
     parser.add_argument("--d-cutoff", type=float, default=defaults.d_cutoff)
+    parser.add_argument("--look-ahead", type=int, default=defaults.look_ahead,
+                        help="frames the backward pass starts ahead (0: forwards only)")
     parser.add_argument("--grid", action="store_true", help="also score a grid of (min_cutoff, beta)")
     parser.add_argument("--json", type=Path, help="write the numbers here")
     args = parser.parse_args(argv)
@@ -207,22 +212,25 @@ def main(argv=None) -> int:
     raw = score(landmarks_of(results), ref, still, moving)
     ref_jitter = jitter(ref, still)
     rows = [("unsmoothed", None, raw)]
-    configs = [SmoothConfig(args.min_cutoff, args.beta, args.d_cutoff),
-               SmoothConfig(args.min_cutoff, args.beta, args.d_cutoff, follow_jumps=False)]
+    given = SmoothConfig(args.min_cutoff, args.beta, args.d_cutoff, look_ahead=args.look_ahead)
+    configs = [given, dataclasses.replace(given, follow_jumps=False)]
+    if given.look_ahead:
+        configs += [dataclasses.replace(given, look_ahead=0), dataclasses.replace(given, look_ahead=0, follow_jumps=False)]
     if args.grid:
-        configs += [SmoothConfig(mc, b, args.d_cutoff) for mc in (0.5, 1.0, 2.0) for b in (5.0, 15.0, 40.0)]
+        configs += [dataclasses.replace(given, min_cutoff=mc, beta=b) for mc in (0.5, 1.0, 2.0) for b in (5.0, 15.0, 40.0)]
     for cfg in configs:
         t = time.perf_counter()
         smoothed = list(smooth_results(results, cfg))
         ms = 1e3 * (time.perf_counter() - t) / len(results)
         rows.append((f"min_cutoff={cfg.min_cutoff:g} beta={cfg.beta:g} d_cutoff={cfg.d_cutoff:g}"
+                     + (f" ahead {cfg.look_ahead}" if cfg.look_ahead else " forwards")
                      + ("" if cfg.follow_jumps else " no jumps"), ms,
                      score(landmarks_of(smoothed), ref, still, moving)))
     print(f"reference (dlib) jitter on the same still stretches: {ref_jitter:.3f} px")
-    print(f"{'':<48} {'jitter px':>9} {'ratio':>6} {'delay fr':>8} {'added':>6} {'NME':>7} {'dNME':>7} "
+    print(f"{'':<56} {'jitter px':>9} {'ratio':>6} {'delay fr':>8} {'added':>6} {'NME':>7} {'dNME':>7} "
           f"{'lost':>4} {'ms/fr':>6}")
     for name, ms, s in rows:
-        print(f"{name:<48} {s['jitter_px']:>9.3f} {s['jitter_px'] / raw['jitter_px']:>6.2f} "
+        print(f"{name:<56} {s['jitter_px']:>9.3f} {s['jitter_px'] / raw['jitter_px']:>6.2f} "
               f"{s['delay_frames']:>8.2f} {s['delay_frames'] - raw['delay_frames']:>6.2f} {s['nme_mean']:>7.4f} "
               f"{s['nme_mean'] - raw['nme_mean']:>+7.4f} {s['lost']:>4} {'-' if ms is None else f'{ms:.3f}':>6}")
     if args.json:

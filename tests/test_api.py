@@ -56,9 +56,11 @@ def test_track_video_smoothing_switch(tmp_path, synth_model):
     synth.write_video(path, frames)
     raw = list(aamtrack.track_video(path, model=synth_model, smooth=False))
     smooth = list(aamtrack.track_video(path, model=synth_model))
-    assert [r.status for r in raw] == [r.status for r in smooth] and raw[0].success
-    assert np.array_equal(raw[0].landmarks, smooth[0].landmarks)  # the detection frame passes through
-    assert not np.array_equal(raw[-1].landmarks, smooth[-1].landmarks)  # later frames are filtered
+    forwards = list(aamtrack.track_video(path, model=synth_model, smooth=aamtrack.SmoothConfig(look_ahead=0)))
+    assert [r.status for r in raw] == [r.status for r in smooth] == [r.status for r in forwards] and raw[0].success
+    assert np.array_equal(raw[0].landmarks, forwards[0].landmarks)  # forwards only, the detection passes through
+    assert not np.array_equal(raw[-1].landmarks, forwards[-1].landmarks)  # later frames are filtered
+    assert not np.array_equal(raw[0].landmarks, smooth[0].landmarks)  # by default the frames after it count too
     err = np.linalg.norm(np.stack([r.landmarks for r in raw]) - truth, axis=-1).mean()
     assert err < 1.0  # the raw stream is the tracker's own: within a pixel of the truth
     with pytest.raises(AttributeError):

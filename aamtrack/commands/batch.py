@@ -114,7 +114,8 @@ def run_options(*, model_path: Path, overlay: bool, pts: bool, report: bool, rep
         digest = None  # the model's own loading says what is wrong with it
     return {"model": str(Path(model_path).resolve()), "model_sha256": digest, "video": overlay, "pts": pts,
             "report": report, "realtime": replay, "fps": fps,
-            "smooth": None if smooth is None else [smooth.min_cutoff, smooth.beta, smooth.d_cutoff]}
+            "smooth": None if smooth is None else [smooth.min_cutoff, smooth.beta, smooth.d_cutoff,
+                                                    smooth.follow_jumps, smooth.look_ahead]}
 
 
 def _row(task: dict, status: str, summary: dict | None = None, error: str = "") -> dict:

@@ -4,6 +4,7 @@ per frame), a JSON summary and optionally an overlay video and per-frame .pts fi
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import glob
 import logging
 import os
@@ -59,7 +60,8 @@ tracked, lost, fps, status (done / skipped / failed), error. A failed input does
 status is 1 if any failed. Inputs finished by an earlier run with the same model and options are skipped
 unless --overwrite. Several arguments need --out-dir.
 
-smoothing: landmarks and pose pass through a One Euro filter (Casiez et al., CHI 2012), reset on every
+smoothing: landmarks and pose pass through a One Euro filter (Casiez et al., CHI 2012), run forwards and, from
+--smooth-look-ahead frames ahead, backwards, the two averaged (no lag; --realtime: forwards only), reset on every
 detection and after lost frames. Lower --smooth-beta smooths more and lags more on slow motion; see README."""
 
 
@@ -97,6 +99,9 @@ def register(sub) -> None:
     p.add_argument("--smooth-beta", type=float, default=d.beta, metavar="BETA",
                    help=f"how fast the cutoff rises with speed (Hz per face width per second); higher lags less "
                         f"in motion, lower jitters less (default {d.beta:g})")
+    p.add_argument("--smooth-look-ahead", type=int, default=d.look_ahead, metavar="N",
+                   help=f"also filter backwards from N frames ahead and average, which takes out the filter's lag "
+                        f"(0: forwards only, as --realtime always is) (default {d.look_ahead})")
     p.set_defaults(func=run)
 
 
@@ -162,6 +167,8 @@ def track_file(input_: str, *, model_path: Path, out_dir: Path, overlay: bool = 
 def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_path: Path, overlay: bool,
            pts: bool, replay: bool, progress: bool, smooth, report: bool, notify, name, pipelined: bool, on_frame,
            extra: dict, tracker) -> dict:
+    if replay and smooth is not None and smooth.look_ahead:  # a live clock gives no frames ahead
+        smooth = dataclasses.replace(smooth, look_ahead=0)
     if tracker is None:
         tracker = Tracker(load_model(model_path))
         outputs.prepare()
@@ -258,7 +265,9 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
         "thread_cpu_s": times.cpu_s,
         "start_to_first_result_s": (t_first - t_start) if t_first else None, "warmup_s": t_warm,
         "smoothing": None if smooth is None else {"filter": "one_euro", "min_cutoff_hz": smooth.min_cutoff,
-                                                  "beta": smooth.beta, "d_cutoff_hz": smooth.d_cutoff},
+                                                  "beta": smooth.beta, "d_cutoff_hz": smooth.d_cutoff,
+                                                  "follow_jumps": smooth.follow_jumps,
+                                                  "look_ahead_frames": smooth.look_ahead},
         "wall_s": wall, "fps_end_to_end": counts["read"] / wall,
         "outputs": {"csv": str(csv_path), "summary": str(json_path)},
         **extra,
@@ -315,10 +324,12 @@ def run(args: argparse.Namespace) -> int:
     smooth = None
     if not args.no_smooth:
         try:
-            smooth = SmoothConfig(min_cutoff=args.smooth_min_cutoff, beta=args.smooth_beta)
+            smooth = SmoothConfig(min_cutoff=args.smooth_min_cutoff, beta=args.smooth_beta,
+                                  look_ahead=args.smooth_look_ahead)
         except ValueError:
-            raise InputError(f"--smooth-min-cutoff must be > 0 and --smooth-beta >= 0, got "
-                             f"{args.smooth_min_cutoff:g} and {args.smooth_beta:g}") from None
+            raise InputError(f"--smooth-min-cutoff must be > 0, --smooth-beta >= 0 and --smooth-look-ahead >= 0, "
+                             f"got {args.smooth_min_cutoff:g}, {args.smooth_beta:g} and "
+                             f"{args.smooth_look_ahead}") from None
     if batch:
         return _run_batch(args, items, model_path, smooth)
     input_ = items[0]

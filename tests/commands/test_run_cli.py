@@ -87,6 +87,7 @@ def test_realtime_drops_frames_of_a_fast_source(tmp_path, model_file):
     assert cols["dropped"].sum() > 0 and (cols["success"][cols["dropped"] == 1] == 0).all()
     summary = json.loads((out / "frames.json").read_text())
     assert summary["frames_dropped"] == int(cols["dropped"].sum())
+    assert summary["smoothing"]["look_ahead_frames"] == 0  # a live clock has no frames ahead: forwards only
 
 
 @pytest.mark.parametrize("make,needle", [

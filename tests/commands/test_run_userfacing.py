@@ -41,7 +41,8 @@ def test_verbose_report_and_smoothing(tmp_path, away_video, model_file, capsys, 
     back = int(np.flatnonzero((cols["status"] == "detected") & (cols["frame"] > 8))[0])
     assert (cols["status"][8:back] == "lost").all() and back >= AWAY.stop  # no "face" while it is away
     summary = json.loads((out / "away.json").read_text())
-    assert summary["smoothing"]["filter"] == "one_euro"  # on by default
+    assert summary["smoothing"]["filter"] == "one_euro"  # on by default, looking ahead
+    assert summary["smoothing"]["look_ahead_frames"] == 8 and summary["smoothing"]["follow_jumps"] is True
     assert summary["outputs"]["report"] == str(out / "report.html")
     text = (out / "report.html").read_text()
     assert f"frames 8&ndash;{back - 1}" in text and "low confidence" in text
@@ -57,10 +58,13 @@ def test_report_without_matplotlib_writes_nothing(tmp_path, away_video, model_fi
     assert not out.exists()
 
 
-def test_bad_smoothing_parameters(tmp_path, away_video, model_file, capsys):
+@pytest.mark.parametrize("option", ["--smooth-beta", "--smooth-look-ahead"])
+def test_bad_smoothing_parameters(tmp_path, away_video, model_file, capsys, option):
     assert main(["run", str(away_video[0]), "--model", str(model_file), "--out-dir", str(tmp_path / "o"),
-                 "--smooth-beta", "-1"]) == 1
-    assert "--smooth-beta" in capsys.readouterr().err
+                 option, "-1"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and option in err[0] and "-1" in err[0]
+    assert not (tmp_path / "o").exists()
 
 
 def test_compile_message_only_when_the_warm_up_is_slow(monkeypatch):

@@ -36,10 +36,12 @@ def test_verbose_report_and_smoothing(tmp_path, away_video, model_file, capsys, 
     # the face leaves at frame 8: the search from frame 7 fits the background badly; then Haar finds nothing, or
     # finds background in a turned copy of the frame whose fit the validator rejects: every frame stays lost
     assert any(e.startswith("frame 8: lost: low confidence") for e in events), events
-    assert any("face re-detected after" in e and "frames lost" in e for e in events), events
+    # the face is back at frame 14: found there, or a frame or two later and tracked back to it (``backfill``)
+    assert any(("face re-detected after" in e or "tracking again after" in e) and "frames lost" in e
+               for e in events), events
     cols = read_tracking_csv(out / "away.csv")
-    back = int(np.flatnonzero((cols["status"] == "detected") & (cols["frame"] > 8))[0])
-    assert (cols["status"][8:back] == "lost").all() and back >= AWAY.stop  # no "face" while it is away
+    back = int(np.flatnonzero((cols["success"] == 1) & (cols["frame"] > 8))[0])
+    assert (cols["status"][8:back] == "lost").all() and back == AWAY.stop  # no "face" while it is away
     summary = json.loads((out / "away.json").read_text())
     assert summary["smoothing"]["filter"] == "one_euro"  # on by default, looking ahead
     assert summary["smoothing"]["look_ahead_frames"] == 8 and summary["smoothing"]["follow_jumps"] is True

@@ -1,5 +1,7 @@
 """The tracker on synthetic videos with known motion."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -738,16 +740,40 @@ class _SeenOnlyThoroughly:
 def test_lost_frames_run_the_thorough_searches_every_so_many_frames(synth_model, every, first_found):
     """Five grey frames, then a face only the thorough searches see; shot changes off. The first lost frame
     searches thoroughly, then every ``thorough_every``-th: with 1 the face is found on its first frame (5), with 4
-    on the next thorough frame (8); once found, no more detection."""
+    on the next thorough frame (8); once found, no more detection. (No tracking back from the detection here:
+    ``test_a_face_found_late_is_tracked_back_to_where_it_appeared``.)"""
     ref = synth.face_layout()
     face = synth.render(ref, synth.project2d(ref, 0.0, 130, 160, 120), (320, 240))
     frames = [np.full_like(face, 60)] * 5 + [face] * 6
     seen = _SeenOnlyThoroughly()
-    cfg = TrackerConfig(thorough_every=every, cut_below=0)
+    cfg = TrackerConfig(thorough_every=every, cut_below=0, backfill=0)
     results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
         synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.success for r in results] == [False] * first_found + [True] * (len(frames) - first_found)
     assert seen.flags == [i % every == 0 for i in range(first_found + 1)]  # a find per frame until found
+
+
+@pytest.mark.parametrize("cut_below", [0.0, TrackerConfig().cut_below])
+def test_a_face_found_late_is_tracked_back_to_where_it_appeared(synth_model, cut_below):
+    """As above with ``thorough_every`` 4: the face appears at frame 5 but is found at 8. The frames between wait
+    and are tracked backwards from the detection (``TrackerConfig.backfill``); the grey frames before stay lost
+    (their fits are refused), with the shot change at frame 5 (``cut_below``) or without it."""
+    from aamtrack.metrics import nme
+
+    ref = synth.face_layout()
+    truth = synth.project2d(ref, 0.0, 130, 160, 120)
+    face = synth.render(ref, truth, (320, 240))
+    frames = [np.full_like(face, 60)] * 5 + [face] * 6
+    cfg = TrackerConfig(thorough_every=4, cut_below=cut_below)
+    results = list(Tracker(synth_model, config=cfg, detector=_SeenOnlyThoroughly().detector).track(
+        synth_frame(i, f) for i, f in enumerate(frames)))
+    assert [r.frame for r in results] == list(range(11))
+    assert [r.status for r in results] == ["lost"] * 5 + ["tracked"] * 3 + ["detected"] + ["tracked"] * 2
+    for r in results[5:8]:
+        assert nme(r.landmarks, truth) < 0.08  # on the face
+    held = list(Tracker(synth_model, config=replace(cfg, backfill=2), detector=_SeenOnlyThoroughly().detector)
+                .track(synth_frame(i, f) for i, f in enumerate(frames)))
+    assert [r.status for r in held][5:9] == ["lost", "tracked", "tracked", "detected"]  # at most 2 wait
 
 
 def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
@@ -1050,15 +1076,16 @@ def test_blurred_blank_frames_are_never_tracked(synth_model):
 
 def test_a_face_that_jumps_out_of_the_search_s_reach_is_found_again_in_the_same_frame(synth_model):
     """A tracked face jumps 70 px (more than half its width) from one frame to the next, shot changes off: the
-    tracked search cannot follow (the premise: with ``redetect_lost`` off that frame is lost and the next one
-    detected); with it (the default) the frame is detected at once, on the face, and tracking goes on."""
+    tracked search cannot follow (the premise: with ``redetect_lost`` off, and no tracking back from the next
+    frame's detection, that frame is lost and the next one detected); with it (the default) the frame is detected
+    at once, on the face, and tracking goes on."""
     ref = synth.face_layout()
     here = synth.project2d(ref, 0.0, 110, 120, 120)
     there = synth.project2d(ref, 0.0, 180, 120, 120)
     frames = [synth.render(ref, here, (320, 240))] * 3 + [synth.render(ref, there, (320, 240))] * 3
     runs = {}
     for redetect in (False, True):
-        cfg = TrackerConfig(cut_below=0, redetect_lost=redetect)
+        cfg = TrackerConfig(cut_below=0, redetect_lost=redetect, backfill=0)
         runs[redetect] = list(Tracker(synth_model, config=cfg).track(synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.status for r in runs[False]] == ["detected", "tracked", "tracked", "lost", "detected", "tracked"]
     assert [r.status for r in runs[True]] == ["detected", "tracked", "tracked", "detected", "tracked", "tracked"]

@@ -56,7 +56,8 @@ class FrameResult:
     anim_params, shape_params : 1-D float64, named by the shape model's ``coef_names`` / ``shape_names``
     vertices : (n_vertices, 2) float64 mesh vertices in pixels (for overlays), NaN where not successful
     confidence : 0..1, the model's fit validator (``Model.validator``)
-    reason : why the frame has no result ("no face detected", "low confidence ..."); empty when successful
+    reason : why the frame has no result ("no face detected", "low confidence ..."); empty when successful, but for
+        a frame tracked back from a later detection ("tracked back from frame N", ``TrackerConfig.backfill``)
     """
 
     frame: int

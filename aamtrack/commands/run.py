@@ -183,7 +183,7 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
     pts_dir = outputs.folder_output(f"{stem}_pts") if pts else None
     sm = model.shape
     is3d = sm.kind == "3d"
-    counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0)
+    counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0, tracked_back=0)
     per_frame = {"detect": [], "pyramid": [], "search": []}
     rep = None
     if report:
@@ -222,6 +222,7 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                         per_frame[k].append(res.timings[k])
                 counts["read"] += 1
                 counts[res.status] += 1
+                counts["tracked_back"] += bool(res.success and res.reason)  # (tracked back from a detection)
                 bar.update(1)
                 if on_frame is not None:
                     on_frame(1)
@@ -258,6 +259,7 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
         "frames_read": counts["read"], "frames_tracked": counts["tracked"] + counts["detected"],
         "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
         "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
+        "frames_tracked_back": counts["tracked_back"],
         "realtime": replay, "video_fps": source.fps,
         "timing_ms": {"decode": ms_stats(times.decode), **{k: ms_stats(v) for k, v in per_frame.items()},
                       "output": ms_stats(times.output), "track": ms_stats(track_times)},

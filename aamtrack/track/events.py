@@ -72,7 +72,8 @@ def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> 
                     gap = f" after {_frames(res.frame - lost_since)} lost" if lost_since is not None else ""
                     log.info("frame %d: face re-detected%s (confidence %.2f)", res.frame, gap, res.confidence)
             elif lost_since is not None:
-                log.info("frame %d: tracking again after %s lost", res.frame, _frames(res.frame - lost_since))
+                back = f" ({res.reason})" if res.reason else ""  # tracked back from a later detection
+                log.info("frame %d: tracking again after %s lost%s", res.frame, _frames(res.frame - lost_since), back)
             tracked_before = True
             lost_since = last_reason = None
             yield res

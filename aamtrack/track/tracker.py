@@ -31,6 +31,7 @@ from .replay import ReplayFrame
 log = logging.getLogger(__name__)
 
 TRACKED_STARTS = ("auto", "landmarks", "similarity", "search")
+BACKFILL_REASON = "tracked back from frame {}"  # ``FrameResult.reason`` of a frame tracked back from a detection
 
 
 def _motion(p: np.ndarray, q: np.ndarray) -> tuple[float, float]:
@@ -594,7 +595,7 @@ class Tracker:
             rotation=pose[:3].copy(), translation=pose[4:6] + o, scale=float(pose[3]),
             anim_params=q[N_POSE:].copy() if is3d else np.zeros(0),
             shape_params=sigma.copy() if is3d else q[N_POSE:].copy(),
-            vertices=res.vertices + o, timings=timings)
+            vertices=res.vertices + o, timings=timings, reason=reason)
 
     # -- a still -------------------------------------------------------------------------------------
     def fit_still(self, frame, *, mirror: bool = True, agree: float = 0.08, agree_dim: float = 0.03) -> FrameResult:
@@ -747,17 +748,18 @@ class Tracker:
                     yield held.pop(0)[0]
                 continue
             if held and res.status == "detected" and fit is not None and not cut:
-                yield from self._backfilled(held, fit, shape_params)
+                yield from self._backfilled(held, fit, shape_params, res.frame)
             else:
                 yield from (r for r, _ in held)
             held = []
             yield res
         yield from (r for r, _ in held)
 
-    def _backfilled(self, held: list, fit: FitResult, shape_params) -> Iterator[FrameResult]:
+    def _backfilled(self, held: list, fit: FitResult, shape_params, found: int) -> Iterator[FrameResult]:
         """The lost frames ``held`` ((result, frame), oldest first, the frame after the last one a detection's
-        ``fit``), each searched from the next one's fit as a tracked frame is from the previous one's, latest first,
-        until one is not accepted (it and the ones before it stay lost). Yields their results in frame order."""
+        ``fit``, at frame ``found``), each searched from the next one's fit as a tracked frame is from the previous
+        one's, latest first, until one is not accepted (it and the ones before it stay lost). Yields their results
+        in frame order; those tracked say so in their ``reason`` (``BACKFILL_REASON``)."""
         cfg = self.config
         out = [r for r, _ in held]
         after = fit
@@ -769,7 +771,7 @@ class Tracker:
             timings = _summed(res.timings, {"pyramid": t_pyr, "search": time.perf_counter() - t0 - t_pyr})
             if self.loss_reason(got, frame.image.shape[:2], after.p):
                 break
-            out[i] = self._result(frame, "tracked", got, timings, "")
+            out[i] = self._result(frame, "tracked", got, timings, BACKFILL_REASON.format(found))
             after = got
         yield from out
 

@@ -42,7 +42,9 @@ def test_verbose_report_and_smoothing(tmp_path, away_video, model_file, capsys, 
     cols = read_tracking_csv(out / "away.csv")
     back = int(np.flatnonzero((cols["success"] == 1) & (cols["frame"] > 8))[0])
     assert (cols["status"][8:back] == "lost").all() and back == AWAY.stop  # no "face" while it is away
+    found = int(np.flatnonzero((cols["status"] == "detected") & (cols["frame"] > 8))[0])
     summary = json.loads((out / "away.json").read_text())
+    assert summary["frames_tracked_back"] == found - back
     assert summary["smoothing"]["filter"] == "one_euro"  # on by default, looking ahead
     assert summary["smoothing"]["look_ahead_frames"] == 8 and summary["smoothing"]["follow_jumps"] is True
     assert summary["outputs"]["report"] == str(out / "report.html")

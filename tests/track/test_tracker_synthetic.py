@@ -771,6 +771,7 @@ def test_a_face_found_late_is_tracked_back_to_where_it_appeared(synth_model, cut
     assert [r.status for r in results] == ["lost"] * 5 + ["tracked"] * 3 + ["detected"] + ["tracked"] * 2
     for r in results[5:8]:
         assert nme(r.landmarks, truth) < 0.08  # on the face
+        assert r.reason == "tracked back from frame 8"
     held = list(Tracker(synth_model, config=replace(cfg, backfill=2), detector=_SeenOnlyThoroughly().detector)
                 .track(synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.status for r in held][5:9] == ["lost", "tracked", "tracked", "detected"]  # at most 2 wait

@@ -71,6 +71,8 @@ def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> 
                 else:
                     gap = f" after {_frames(res.frame - lost_since)} lost" if lost_since is not None else ""
                     log.info("frame %d: face re-detected%s (confidence %.2f)", res.frame, gap, res.confidence)
+            elif not tracked_before and res.reason:  # the first face, tracked back from a later detection
+                log.info("frame %d: face found (%s)", res.frame, res.reason)
             elif lost_since is not None:
                 back = f" ({res.reason})" if res.reason else ""  # tracked back from a later detection
                 log.info("frame %d: tracking again after %s lost%s", res.frame, _frames(res.frame - lost_since), back)

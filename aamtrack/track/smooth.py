@@ -175,20 +175,7 @@ def smooth_results(results: Iterable[FrameResult], config: SmoothConfig = Smooth
 
 
 def _forwards(results: Iterable[FrameResult], config: SmoothConfig) -> Iterator[FrameResult]:
-    """Yield ``results`` with landmarks, vertices, pose, 3D landmarks and animation units One-Euro-filtered, one
-    frame after another (causal).
-
-    Parameters
-    ----------
-    results : iterable of FrameResult
-        A tracker's output, in frame order (e.g. ``Tracker.track(frames)``).
-    config : SmoothConfig
-
-    Yields
-    ------
-    FrameResult
-        One per input, same frame, status, confidence and timings. Unsuccessful ones are passed through.
-    """
+    """``smooth_results`` filtering forwards only, one frame after another (causal)."""
     for res, stacked, y in _forward_pass(results, config):
         yield res if y is None else dataclasses.replace(res, **_unstacked(y, stacked[1]))
 

@@ -52,3 +52,20 @@ def test_a_run_of_low_confidence_losses_is_logged_once(caplog):
         "frame 4: lost: low confidence 0.10 < 0.50",
         "frame 5: face re-detected after 1 frame lost (confidence 0.90)",
     ]
+
+
+def test_frames_tracked_back_from_a_detection_are_logged_as_such(caplog):
+    back = "tracked back from frame {}"
+    stream = [_r(0, "lost", 0.0, searched=False), _r(1, "tracked", reason=back.format(2)), _r(2, "detected"),
+              _r(3, "lost", 0.1), _r(4, "tracked", reason=back.format(5)), _r(5, "detected")]
+    with caplog.at_level(logging.INFO, logger="aamtrack.track"):
+        out = list(annotate(stream))
+    assert out[1].reason == back.format(2) and out[4].reason == back.format(5)  # kept on the tracked frames
+    assert [r.getMessage() for r in caplog.records] == [
+        "frame 0: no track: no face detected",
+        "frame 1: face found (tracked back from frame 2)",
+        "frame 2: face re-detected (confidence 0.90)",
+        "frame 3: lost: low confidence 0.10 < 0.50",
+        "frame 4: tracking again after 1 frame lost (tracked back from frame 5)",
+        "frame 5: face re-detected (confidence 0.90)",
+    ]

@@ -26,10 +26,11 @@ the mesh vertices, the pose (rotation, translation, scale), the 3D landmarks and
 everything written for a frame stays consistent (an overlay's mesh and axes sit on its landmarks). Shape units
 (held per person) pass through.
 
-The filter is reset (its output is the raw frame) on a detection (``status == "detected"``: the track starts
-again, possibly on another face) and on the first successful frame after a frame without a result (lost,
-unreadable); dropped frames of a realtime replay only widen ``dt``. Frames without a result pass through as they
-are. Smoothing runs on the tracker's output only: the tracker itself searches from its own unsmoothed fits.
+The forward filter is reset (its output is the raw frame) on a detection (``status == "detected"``: the track
+starts again, possibly on another face) and on the first successful frame after a frame without a result (lost,
+unreadable); the backward one (``look_ahead``, below) on the frame before a detection and the last successful
+frame before a frame without a result, so neither pulls a frame towards another stretch's face. Dropped frames of
+a realtime replay only widen ``dt``. Frames without a result pass through as they are. Smoothing runs on the tracker's output only: the tracker itself searches from its own unsmoothed fits.
 
 Defaults, chosen on cap12 (the one video with a per-frame reference) with the shipped 3D model
 (``benchmarks/smoothing.py``; README, "Smoothing"): ``min_cutoff = 0.02`` Hz, ``beta = 20`` Hz per (face width / s),

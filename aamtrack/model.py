@@ -31,9 +31,10 @@ from .io.obj import npz_problem
 from .io.pts import N_LANDMARKS
 from .landmark_cascade import DescriptorSpec, LandmarkCascade, quantise_rows, sharpness, signal_to_noise
 from .mesh.shape_model import N_POSE, ShapeModel
+from .mesh.shape_prior import ShapePrior
 from .mesh.texture_map import TextureFrame
 
-FORMAT_VERSION = 11  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
+FORMAT_VERSION = 12  # 3: the landmark cascade (``landmark_cascade``); 4: the landmark validator; 5: it reads
 # the cascade's last-stage descriptors (before the last update) instead of a pass of its own at the final points;
 # 6: the landmark cascade's stages also read the points' shape (``landmarks/shape_regressors``); 7: a second
 # landmark cascade for soft (blurred) faces (``soft_landmarks/*``, ``Model.soft_cascade``); 8: a second landmark
@@ -41,7 +42,8 @@ FORMAT_VERSION = 11  # 3: the landmark cascade (``landmark_cascade``); 4: the la
 # faces (``soft_couple*/*``, ``Model.soft_couples``) and (optional) a landmark validator for soft faces
 # (``soft_validator/*``, ``Model.soft_validator``); 10: the landmark cascade's last stage ``repeats`` (it runs that
 # many more times: older files would read as none, and their validators were learned without); 11: a landmark
-# cascade for stills' fits of dim faces (``dim_landmarks/*``, ``Model.dim_cascade``)
+# cascade for stills' fits of dim faces (``dim_landmarks/*``, ``Model.dim_cascade``); 12: the labelled shapes' prior
+# (``shape_prior/*``, ``Model.shape_prior``), which the tracker refuses implausible fits by
 STAT_NAMES = ("rms_residual", "texture_correlation", "texture_energy", "pose_update")
 """The fit statistics a validator reads, in order (``aamtrack.search.Searcher.statistics`` computes them)."""
 MAX_ENTRY_BYTES = 512 * 2 ** 20  # no array of a model is near this; a crafted header claiming more is refused
@@ -142,6 +144,7 @@ class Model:
     soft_couples: tuple = ()  # the couples a search takes for a face softer than ``soft_above`` at its start (or none)
     soft_validator: Validator | None = None  # the landmark validator for fits the soft cascade gave (not dim ones)
     dim_cascade: LandmarkCascade | None = None  # the landmark cascade for a still's fit of a dim face (``dim``)
+    shape_prior: ShapePrior | None = None  # the labelled 68-point shapes' distribution (``mesh.shape_prior``)
 
     @property
     def kind(self) -> str:
@@ -239,6 +242,10 @@ def save_model(model: Model, path: str | Path) -> None:
         if val is not None:
             arrays[f"{key}/weights"], arrays[f"{key}/mean"] = val.weights, val.mean
             arrays[f"{key}/scale"], arrays[f"{key}/descriptor_weights"] = val.scale, val.descriptor_weights
+    sp = model.shape_prior
+    if sp is not None:
+        arrays["shape_prior/mean"], arrays["shape_prior/modes"] = sp.mean, sp.modes
+        arrays["shape_prior/variances"] = sp.variances
     dv, sv = model.dim_validator, model.soft_validator
     meta = {
         "format_version": FORMAT_VERSION,
@@ -261,6 +268,7 @@ def save_model(model: Model, path: str | Path) -> None:
         "dim_validator": None if dv is None else {"names": list(dv.names), "bias": dv.bias,
                                                   "below": model.dim_below},
         "soft_validator": None if sv is None else {"names": list(sv.names), "bias": sv.bias},
+        "shape_prior": None if sp is None else {"residual_variance": sp.residual_variance},
         "config": model.config,
     }
     arrays["meta"] = np.array(json.dumps(meta))
@@ -482,12 +490,29 @@ def _read(c: _Checker, meta: dict) -> Model:
     if sv is not None and (lv is None or soft is None):
         c.fail("a validator for soft faces without a landmark validator and a soft landmark cascade")
     dim_cascade = _dim_cascade(c, meta.get("dim_landmarks"), lc, dim)
+    shape_prior = _shape_prior(c, meta.get("shape_prior"))
     return Model(shape=shape, features=features, textures=textures, couples=couples, detector_box_points=box,
                  validator=validator, config=config if isinstance(config, dict) else {}, landmark_cascade=lc,
                  landmark_validator=None if lv is None else _validator(c, "landmark_validator", lv, n_z),
                  soft_cascade=soft, soft_above=above, dim_validator=dim, dim_below=below, soft_couples=soft_couples,
                  soft_validator=None if sv is None else _validator(c, "soft_validator", sv, n_z),
-                 dim_cascade=dim_cascade)
+                 dim_cascade=dim_cascade, shape_prior=shape_prior)
+
+
+def _shape_prior(c: _Checker, spec: dict | None) -> ShapePrior | None:
+    """The shape prior or None (``mesh.shape_prior.ShapePrior``)."""
+    if spec is None:
+        return None
+    rho = spec.get("residual_variance") if isinstance(spec, dict) else None
+    if type(rho) not in (int, float) or not (math.isfinite(rho) and rho > 0):
+        c.fail("unreadable shape_prior settings")
+    variances = c.array("shape_prior/variances", np.float64, (None,))
+    k = len(variances)
+    if not (1 <= k < 2 * N_LANDMARKS) or not (variances > 0).all():
+        c.fail("the shape prior's variances are not positive")
+    return ShapePrior(mean=c.array("shape_prior/mean", np.float64, (N_LANDMARKS, 2)),
+                      modes=c.array("shape_prior/modes", np.float64, (k, 2 * N_LANDMARKS)), variances=variances,
+                      residual_variance=float(rho))
 
 
 def _validator(c: _Checker, key: str, spec, n_descriptor: int = 0) -> Validator:

@@ -44,6 +44,10 @@ def test_round_trip(tmp_path, synth_model):
     assert sv0 is not None  # the synthetic model has a validator for soft faces too
     assert sv.bias == sv0.bias and np.array_equal(sv.weights, sv0.weights)
     assert np.array_equal(sv.descriptor_weights, sv0.descriptor_weights)
+    sp, sp0 = m.shape_prior, synth_model.shape_prior
+    assert sp0 is not None and sp.residual_variance == sp0.residual_variance  # learned by default: it is tested
+    assert np.array_equal(sp.mean, sp0.mean) and np.array_equal(sp.modes, sp0.modes)
+    assert np.array_equal(sp.variances, sp0.variances)
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]  # no temporary left behind
 
 
@@ -292,13 +296,19 @@ def _damaged(synth_model):
         ("dim cascade without its arrays", {"dim_landmarks/biases": None}, {}, "missing"),
         ("dim cascade without a dim validator", {}, {"dim_validator": None},
          "dim faces without a landmark cascade and a validator"),
+        ("shape prior without its modes", {"shape_prior/modes": None}, {}, "missing"),
+        ("shape prior modes of another count", {"shape_prior/modes": synth_model.shape_prior.modes[:-1]}, {},
+         "has shape"),
+        ("negative shape prior variance", {"shape_prior/variances": -synth_model.shape_prior.variances}, {},
+         "variances are not positive"),
+        ("unreadable shape prior", {}, {"shape_prior": {"residual_variance": "small"}}, "unreadable shape_prior"),
         ("validator of other statistics", {"validator/weights": np.zeros(5), "validator/mean": np.zeros(5),
                                            "validator/scale": np.ones(5)},
          {"validator": {"names": ["a", "b", "c", "d", "e"], "bias": 0.0}}, "this version computes"),
     ]
 
 
-@pytest.mark.parametrize("case", range(35))
+@pytest.mark.parametrize("case", range(39))
 def test_malformed_models_give_one_clear_error(tmp_path, model_path, synth_model, case):
     name, arrays, meta, message = _damaged(synth_model)[case]
     bad = tmp_path / "bad.npz"

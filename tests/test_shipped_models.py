@@ -167,3 +167,66 @@ def test_a_blurred_still_is_looked_at_again_sharpened():
     print(f"blurred helen_test, within NME 0.08: {good[True]} of {len(pairs)} with the second look, "
           f"{good[False]} without")
     assert good[True] >= good[False] + 2
+
+
+@pytest.mark.parametrize("kind", ["3d", "2d"])
+def test_shipped_shape_prior_is_the_one_training_learns_from_helen_train(kind):
+    """The shipped models' shape prior (added to the session-31 models, not retrained) is what ``train_model``
+    learns: ``learn_shape_prior`` of helen_train's labels and their mirrors, in OpenCV's pixels as training holds
+    them."""
+    from conftest import shared_path
+
+    from aamtrack.io.dataset import find_pairs, load_pair
+    from aamtrack.mesh.landmarks import mirror_points
+    from aamtrack.metrics import PIXEL_ORIGIN
+    from aamtrack.train.shape_prior import learn_shape_prior
+
+    folder = shared_path("300w", "helen_train")
+    pts, mirrored = [], []
+    for image_path, pts_path in find_pairs(folder):
+        image, p = load_pair(image_path, pts_path)
+        pts.append(p - PIXEL_ORIGIN)
+        mirrored.append(mirror_points(p - PIXEL_ORIGIN, image.shape[1], origin=0.0))
+    prior = learn_shape_prior(np.array(pts + mirrored))
+    shipped = load_model(default_model_path(kind)).shape_prior
+    assert shipped.n_modes == prior.n_modes
+    assert np.allclose(shipped.mean, prior.mean, atol=1e-12)
+    assert np.allclose(np.abs(shipped.modes @ prior.modes.T), np.eye(prior.n_modes), atol=1e-6)  # (signs: SVD's)
+    assert np.allclose(shipped.variances, prior.variances, rtol=1e-9)
+
+
+def test_a_hand_over_the_mouth_leaves_fewer_wrong_shapes_with_the_shape_test():
+    """The sample clip with a skin-coloured ellipse over the mouth and chin on frames 100-199, placed from the clean
+    track's points: with the shape test (``TrackerConfig.max_shape_score``) fewer of those frames are reported
+    tracked with points more than 0.10 eye distances from the clean track's than without it, none of them with an
+    implausible shape, and the frames after the hand are tracked as before."""
+    import sys
+    from dataclasses import replace
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from occlusion import SKIN, occluder_mask
+
+    from aamtrack.metrics import PIXEL_ORIGIN, nme
+    from aamtrack.track.replay import ReplayFrame
+
+    model = load_model(default_model_path("3d"))
+    with open_frames(SAMPLE) as frames:
+        images = [f.image for f in frames][:230]
+    on = Tracker(model)
+    clean = list(on.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
+    assert all(r.success for r in clean)  # the premise: the clean clip is tracked throughout
+    covered = range(100, 200)
+    occluded = [im.copy() for im in images]
+    for i in covered:
+        occluded[i][occluder_mask("mouth", clean[i].landmarks, occluded[i].shape)] = SKIN
+    wrong = {}
+    for name, tracker in (("on", on), ("off", Tracker(model, config=replace(on.config, max_shape_score=0.0)))):
+        results = list(tracker.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(occluded)))
+        wrong[name] = sum(r.success and float(nme(r.landmarks, clean[i].landmarks)) > 0.10
+                          for i, r in zip(covered, results[100:200], strict=True))
+        if name == "on":
+            scores = [model.shape_prior.score(r.landmarks - PIXEL_ORIGIN) for r in results[100:200] if r.success]
+            assert max(scores) <= on.config.max_shape_score
+            assert all(r.success for r in results[210:])  # the track is back once the hand is gone
+    assert wrong["off"] >= 10  # the premise: the hand pulls the points off without the test
+    assert wrong["on"] <= 0.5 * wrong["off"]

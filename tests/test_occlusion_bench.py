@@ -1,0 +1,72 @@
+"""benchmarks/occlusion.py: each occluder covers the part of the face it is named for and moves with the points; the
+covered stretches and the scores count what they say."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import synth
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+import occlusion as oc  # noqa: E402
+
+SIZE = (320, 400)  # (H, W)
+
+
+def _face(cx=200.0, cy=150.0, width=120.0) -> np.ndarray:
+    """(68, 2) a face's points (package pixels) at (cx, cy)."""
+    return synth.project2d(synth.face_layout(), 0.0, width, cx, cy) + 1.0
+
+
+def _covered(mask, pts, idx) -> float:
+    xy = np.rint(pts[idx] - 1.0).astype(int)
+    return float(mask[xy[:, 1], xy[:, 0]].mean())
+
+
+def test_each_occluder_covers_its_part_of_the_face_and_moves_with_it():
+    pts = _face()
+    mouth = oc.occluder_mask("mouth", pts, SIZE)
+    assert _covered(mouth, pts, range(48, 68)) == 1.0 and _covered(mouth, pts, range(36, 48)) == 0.0
+    eye = oc.occluder_mask("eye", pts, SIZE)
+    assert _covered(eye, pts, range(36, 42)) == 1.0 and _covered(eye, pts, range(42, 48)) == 0.0  # one eye only
+    half = oc.occluder_mask("half", pts, SIZE)
+    assert _covered(half, pts, range(36, 42)) == 1.0 and _covered(half, pts, range(42, 48)) == 0.0
+    mic = oc.occluder_mask("mic", pts, SIZE)
+    assert mic[-1].any() and _covered(mic, pts, range(36, 48)) == 0.0  # a stem to the frame's bottom, eyes free
+    moved = oc.occluder_mask("mouth", pts + [30.0, -20.0], SIZE)
+    assert np.array_equal(np.roll(np.roll(mouth, 30, axis=1), -20, axis=0), moved)
+
+
+def test_covered_stretches_and_visible_points():
+    n = 420
+    covered = oc.covered_frames(n)
+    assert covered[oc.START:oc.START + oc.SPAN].all() and not covered[:oc.START].any()
+    assert covered.sum() == 2 * oc.SPAN  # 100-149 and 300-349: a third would end past the last frame
+    frames = [np.full((*SIZE, 3), 90, np.uint8) for _ in range(n)]
+    ref = np.stack([_face() for _ in range(n)])
+    images, cov, visible = oc.occluded_video(frames, ref, "mouth")
+    assert np.array_equal(cov, covered) and images[0] is frames[0]
+    assert (images[oc.START] == oc.SKIN).all(axis=2).any() and not (images[0] == oc.SKIN).all(axis=2).any()
+    assert not visible[oc.START, 48:68].any() and visible[oc.START, 36:48].all() and visible[0].all()
+
+
+def test_scores_count_what_they_say():
+    n = 420
+    ref = np.stack([_face() for _ in range(n)])
+    covered = oc.covered_frames(n)
+    visible = np.ones((n, 68), bool)
+    visible[covered, 48:] = False
+    landmarks = ref.copy()
+    eye = float(np.linalg.norm(ref[0, 45] - ref[0, 36]))
+    landmarks[oc.START:oc.START + 10, 48:] += [0.0, -0.5 * eye]  # 10 frames with the mouth pulled up
+    success = np.ones(n, bool)
+    success[oc.START + 10:oc.START + 20] = False  # 10 lost
+    confidence = np.where(success, 0.9, 0.1)
+    clean = np.zeros(n)
+    row = oc.score(success, landmarks, confidence, ref, covered, visible, clean)
+    assert row["covered_frames"] == 100 and abs(row["covered_tracked"] - 0.9) < 1e-12
+    assert row["covered_above_010"] == 10  # 20 of 68 points off by 0.5: NME 0.147
+    assert abs(row["covered_nme"] - 10 * 0.5 * 20 / 68 / 90) < 1e-9
+    assert row["covered_visible_nme"] == 0.0 and abs(row["covered_confidence"] - 0.9) < 1e-12
+    assert row["after_tracked"] == 1.0 and row["uncovered_nme"] == 0.0

@@ -16,6 +16,7 @@ import numpy as np
 from ._kernels import face_stats as _fs
 from ._kernels import landmark_fit as _lf
 from ._kernels import patches as _p
+from ._kernels import shape_score as _ss
 from ._kernels import warp as _k
 
 F32, F64, I16, I32, I64 = np.float32, np.float64, np.int16, np.int32, np.int64
@@ -210,3 +211,13 @@ def face_noise_and_deviation(image, scale: float, pts) -> tuple[float, float]:
     the points pts (L, 2) in frame pixels."""
     med, sd = _fs._noise_and_deviation(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts"))
     return float(med), float(sd)
+
+
+def shape_prior_score(pts, mean, modes, variances, residual_variance: float) -> float:
+    """How far the points pts (L, 2) lie from a shape prior's mean (L, 2) in its modes (K, 2 L) (orthonormal rows)
+    of variances (K,) and the residual's variance (``aamtrack._kernels.shape_score._shape_score``; inf for
+    non-finite points or points all in one place)."""
+    pts = _in(pts, F64, 2, "pts")
+    return float(_ss._shape_score(pts, _in(mean, F64, 2, "mean"), _in(modes, F64, 2, "modes"),
+                                  _in(variances, F64, 1, "variances"), float(residual_variance),
+                                  np.empty(2 * len(pts), F64)))

@@ -1160,3 +1160,35 @@ def test_only_a_still_s_fit_takes_the_cascade_for_dim_faces(moving_video, synth_
     ran.clear()
     list(tracker.track(frames[:2]))
     assert ran and not any(ran)  # and video again after a still: never
+
+
+def test_a_tracked_fit_of_an_unusual_shape_gets_a_second_look(synth_model):
+    """An accepted tracked fit whose points score above ``shape_recheck_above`` (here: the mouth pulled half-way up
+    to the nose) is replaced by the same frame's detection fit when that one is accepted and of a more plausible
+    shape; a usual shape is left as it is, with no detection run; ``shape_recheck_above`` 0 turns it off."""
+    from dataclasses import replace
+
+    from aamtrack.result import FitResult
+
+    frames, truth = synth.moving_face_frames(1)
+    image = frames[0]
+    tracker = Tracker(synth_model, config=replace(Tracker(synth_model).config, max_shape_score=0.0))
+    prior = synth_model.shape_prior
+    good = truth[0] - 1.0  # OpenCV's pixels, as fits hold them
+    odd = good.copy()
+    odd[48:68, 1] -= 0.5 * (odd[48:68, 1].mean() - odd[30:36, 1].mean())
+    assert prior.score(odd) > tracker.config.shape_recheck_above >= prior.score(good)  # the premise
+    p = np.zeros(synth_model.n_params)
+    for pts, kept in ((good, True), (odd, False)):
+        res = FitResult(p=p, landmarks=pts, vertices=pts, residual=0.1, confidence=0.9)
+        timings = {}
+        fit, status = tracker._second_look(image, res, None, timings)
+        if kept:
+            assert fit is res and status == "tracked" and timings == {}  # no detection run
+        else:
+            assert status == "detected" and prior.score(fit.landmarks) < prior.score(odd)
+            assert float(np.abs(fit.landmarks + 1.0 - truth[0]).mean()) < 2.0  # on the face: within 2 px
+            assert timings["detect"] > 0
+    off = Tracker(synth_model, config=replace(tracker.config, shape_recheck_above=0.0))
+    res = FitResult(p=p, landmarks=odd, vertices=odd, residual=0.1, confidence=0.9)
+    assert off._second_look(image, res, None, {}) == (res, "tracked")

@@ -9,7 +9,8 @@ stuck at 45 (renders of a textured face: NME 0.12-0.17 at confidence 0.5-0.9), a
 half on the new place: in each the points form a shape the labelled faces do not.
 
 ``score`` is that distance: the points are taken into the model's frame by the least-squares similarity
-(``mesh.landmarks.similarity_fit``), and their departure x from the mean is split into the modes' coefficients b and the rest r:
+(``mesh.landmarks.similarity_fit``), and their departure x from the mean is split into the modes' coefficients b
+and the rest r:
 score = sqrt((sum b_k^2 / lambda_k + |r|^2 / rho) / 136), lambda_k the modes' variances and rho the mean
 variance of the directions left out, all over the training labels (so the labels themselves score about 1). The
 tracker's fits are smoother than hand labels (the cascade's regressions shrink towards the usual shape) and score
@@ -45,7 +46,8 @@ class ShapePrior:
     def score(self, points: np.ndarray) -> float:
         """How far the shape of points (68, 2) (any pixels, any size and roll) lies from the labelled faces' (module
         docstring): about 1 for a typical label, lower for the tracker's usual fits; inf for non-finite points or
-        points all in one place. One compiled call (``kernels.shape_prior_score``, about 4 us with its checks; numpy took 37)."""
+        points all in one place. One compiled call (``kernels.shape_prior_score``, about 4 us with its checks;
+        numpy took 37)."""
         return shape_prior_score(points, self.mean, self.modes, self.variances, self.residual_variance)
 
 

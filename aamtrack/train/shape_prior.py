@@ -23,7 +23,8 @@ def _normalised(mean: np.ndarray) -> np.ndarray:
 def learn_shape_prior(points: np.ndarray, *, variance: float = 0.97, n_iter: int = 3) -> ShapePrior:
     """The shape prior of labelled points (n, 68, 2) (any pixels; the training images and their mirrors): the modes
     that explain ``variance`` of the aligned shapes' variance, each shape aligned to the mean as
-    ``ShapePrior.score`` aligns one (the mean re-estimated ``n_iter`` times from ``train.landmarks.reference_shape``)."""
+    ``ShapePrior.score`` aligns one (the mean re-estimated ``n_iter`` times from
+    ``train.landmarks.reference_shape``)."""
     pts = np.asarray(points, np.float64)
     if pts.ndim != 3 or pts.shape[1:] != (68, 2) or len(pts) < 2:
         raise ValueError(f"points of shape {pts.shape}: expected (n >= 2, 68, 2)")

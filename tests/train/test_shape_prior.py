@@ -33,7 +33,8 @@ def _shapes(n: int, rng) -> tuple[np.ndarray, np.ndarray]:
     out = np.empty((n, 68, 2))
     for i in range(n):
         s = ref + np.einsum("k,kld->ld", coef[i], modes) + rng.normal(0.0, NOISE_SD, ref.shape)
-        out[i] = synth.project2d(s, rng.normal(0, 0.3), rng.uniform(60, 200), rng.uniform(50, 300), rng.uniform(50, 300))
+        out[i] = synth.project2d(s, rng.normal(0, 0.3), rng.uniform(60, 200), rng.uniform(50, 300),
+                                 rng.uniform(50, 300))
     return out, coef
 
 

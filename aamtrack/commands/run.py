@@ -11,6 +11,7 @@ import os
 import sys
 import threading
 import time
+from collections import Counter
 from pathlib import Path
 
 from tqdm import tqdm
@@ -26,7 +27,7 @@ from ..io.summary import write_summary_json
 from ..model import load_model
 from ..models import default_model_path
 from ..track.benchmark import warmup
-from ..track.events import annotate
+from ..track.events import annotate, reason_kind
 from ..track.replay import realtime
 from ..track.smooth import SmoothConfig, smooth_results
 from ..track.pipeline import grey_frames, keep_freed_memory, run_pipeline
@@ -184,6 +185,7 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
     sm = model.shape
     is3d = sm.kind == "3d"
     counts = dict(read=0, tracked=0, detected=0, lost=0, dropped=0, unreadable=0, tracked_back=0)
+    lost_by = Counter()  # lost frames by their reason's kind (``events.reason_kind``)
     per_frame = {"detect": [], "pyramid": [], "search": []}
     rep = None
     if report:
@@ -223,6 +225,8 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
                 counts["read"] += 1
                 counts[res.status] += 1
                 counts["tracked_back"] += bool(res.success and res.reason)  # (tracked back from a detection)
+                if res.status == "lost":
+                    lost_by[reason_kind(res.reason)] += 1
                 bar.update(1)
                 if on_frame is not None:
                     on_frame(1)
@@ -260,6 +264,7 @@ def _track(source, outputs: OutputSet, input_: str, *, t_start: float, model_pat
         "frames_lost": counts["lost"], "frames_dropped": counts["dropped"], "frames_unreadable": counts["unreadable"],
         "detections": counts["detected"], "re_detections": max(0, counts["detected"] - 1),
         "frames_tracked_back": counts["tracked_back"],
+        "frames_lost_by_reason": dict(sorted(lost_by.items(), key=lambda kv: -kv[1])),
         "realtime": replay, "video_fps": source.fps,
         "timing_ms": {"decode": ms_stats(times.decode), **{k: ms_stats(v) for k, v in per_frame.items()},
                       "output": ms_stats(times.output), "track": ms_stats(track_times)},

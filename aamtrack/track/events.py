@@ -20,7 +20,7 @@ from typing import Iterable, Iterator
 
 from ..result import FrameResult
 
-__all__ = ["annotate", "loss_reason"]
+__all__ = ["annotate", "loss_reason", "reason_kind"]
 
 log = logging.getLogger("aamtrack.track")
 
@@ -43,8 +43,13 @@ def loss_reason(res: FrameResult, *, min_confidence: float = 0.5) -> str:
     return "fit rejected: landmarks outside the frame or an implausible jump"
 
 
-def _kind(reason: str) -> str:
+def reason_kind(reason: str) -> str:
+    """A loss reason with its numbers as "#" ("low confidence # < #"): what the events log and the run's summary
+    (``frames_lost_by_reason``) group frames by."""
     return re.sub(r"\d+(\.\d+)?", "#", reason)
+
+
+_kind = reason_kind
 
 
 def _frames(n: int) -> str:

@@ -90,3 +90,15 @@ def test_compile_message_only_when_the_warm_up_is_slow(monkeypatch):
     monkeypatch.setattr(run_cmd, "warmup", lambda tracker: 0.01)  # a cache load: quiet
     assert run_cmd._warm_up(None, notify, after=5.0) == 0.01
     assert said == []
+
+
+def test_summary_counts_lost_frames_by_reason(tmp_path, away_video, model_file):
+    """The run's summary says why frames were lost (``frames_lost_by_reason``, the reasons' numbers as "#"): every
+    lost frame counted once, under the reasons the events log gives."""
+    out = tmp_path / "out"
+    assert main(["run", str(away_video[0]), "--model", str(model_file), "--out-dir", str(out)]) == 0
+    summary = json.loads((out / "away.json").read_text())
+    by = summary["frames_lost_by_reason"]
+    assert summary["frames_lost"] >= len(AWAY) - 1 and sum(by.values()) == summary["frames_lost"]
+    assert set(by) <= {"no face detected", "low confidence # < #"}, by  # the kinds this video's losses have
+    assert "low confidence # < #" in by  # frame 8: the search from frame 7 fits the background badly

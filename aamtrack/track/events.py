@@ -49,8 +49,6 @@ def reason_kind(reason: str) -> str:
     return re.sub(r"\d+(\.\d+)?", "#", reason)
 
 
-_kind = reason_kind
-
 
 def _frames(n: int) -> str:
     return f"{n} frame" if n == 1 else f"{n} frames"
@@ -91,7 +89,7 @@ def annotate(results: Iterable[FrameResult], *, min_confidence: float = 0.5) -> 
             continue
         if lost_since is None:
             lost_since = res.frame
-        if _kind(reason) != last_reason:  # a new kind of reason; not every new confidence value
+        if reason_kind(reason) != last_reason:  # a new kind of reason; not every new confidence value
             log.info("frame %d: %s: %s", res.frame, "lost" if tracked_before else "no track", reason)
-            last_reason = _kind(reason)
+            last_reason = reason_kind(reason)
         yield dataclasses.replace(res, reason=reason) if reason != res.reason else res

@@ -33,14 +33,18 @@ DEFAULT_SPEC = DescriptorSpec()
 MAX_LIBRARY_NME = 0.15  # AAM fits worse than this are failures, not errors to learn to correct
 
 
-def reference_shape(points: np.ndarray) -> np.ndarray:
-    """(68, 2) Procrustes mean of points (n, 68, 2) (``shape2d.procrustes_mean``), centred, turned level and
-    scaled so the outer eye corners are 1 apart."""
-    ref = procrustes_mean(np.asarray(points, float))[0]
+def levelled(shape: np.ndarray) -> np.ndarray:
+    """(68, 2) shape centred, turned level and scaled so the outer eye corners are 1 apart."""
+    ref = shape - shape.mean(0)
     d = ref[IBUG_LEFT_EYE_OUTER] - ref[IBUG_RIGHT_EYE_OUTER]
     a = np.arctan2(d[1], d[0])
     rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # row vectors: turns d onto +x
     return ref @ rot / np.hypot(*d)
+
+
+def reference_shape(points: np.ndarray) -> np.ndarray:
+    """(68, 2) Procrustes mean of points (n, 68, 2) (``shape2d.procrustes_mean``), ``levelled``."""
+    return levelled(procrustes_mean(np.asarray(points, float))[0])
 
 
 def made_starts(truth: np.ndarray, ref: np.ndarray, library: np.ndarray, n_per: int, rng: np.random.Generator,

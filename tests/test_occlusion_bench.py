@@ -70,3 +70,21 @@ def test_scores_count_what_they_say():
     assert abs(row["covered_nme"] - 10 * 0.5 * 20 / 68 / 90) < 1e-9
     assert row["covered_visible_nme"] == 0.0 and abs(row["covered_confidence"] - 0.9) < 1e-12
     assert row["after_tracked"] == 1.0 and row["uncovered_nme"] == 0.0
+
+
+def test_occluded_stills_and_their_scores():
+    pts = np.stack([_face(), _face(cx=180.0, width=100.0)])
+    images = [np.full((*SIZE, 3), 90, np.uint8) for _ in range(2)]
+    out, visible = oc.occluded_stills(images, pts, "eye")
+    assert all((o == oc.SKIN).all(axis=2).any() for o in out) and (images[0] == 90).all()  # drawn on copies
+    assert not visible[:, 36:42].any() and visible[:, 42:48].all() and visible[:, 48:].all()
+    eye = np.linalg.norm(pts[:, 45] - pts[:, 36], axis=1)
+    landmarks = pts.copy()
+    landmarks[0, 36:42] += [0.0, 0.6 * eye[0]]  # the hidden eye's 6 points off by 0.6: NME 0.053
+    landmarks[1] += [0.12 * eye[1], 0.0]  # all off by 0.12
+    row = oc.score_stills(np.array([True, True]), landmarks, np.array([0.9, 0.7]), pts, visible)
+    assert row["within"] == 0.5 and row["fitted"] == 2 and row["above_010"] == 1
+    assert abs(row["nme"] - 0.5 * (6 * 0.6 / 68 + 0.12)) < 1e-9
+    assert abs(row["visible_nme"] - 0.5 * (0.0 + 0.12)) < 1e-9 and abs(row["above_010_confidence"] - 0.7) < 1e-12
+    lost = oc.score_stills(np.array([False, True]), landmarks, np.array([0.0, 0.7]), pts, visible)
+    assert lost["within"] == 0.0 and lost["fitted"] == 1 and abs(lost["nme"] - 0.12) < 1e-9  # not fitted: a failure

@@ -83,18 +83,25 @@ def test_pose_of_an_unchanging_face_stays_put():
     person's shape units are being estimated (``TrackerConfig.sigma_frames``) each tracked search starts them at
     the median of the estimates so far (``sigma_restart``); started from the previous frame's fit instead, pose
     and shape walked together along what the 2D points cannot tell apart (pitch range over frames 20-59 of
-    these frames: 4.3 / 3.6 / 4.3 degrees when written, 0.3 / 1.5 / 1.1 with the restart, 0.3 / 0.8 / 0.7 with
-    the estimates from landmark fits too, ``sigma_from_landmarks``)."""
+    these frames: 4.3 / 3.6 / 4.3 degrees when written, 0.3 / 1.5 / 1.1 with the restart). Measured again
+    2026-11-29: no walk is left (range 0.00-0.02 degrees before and after the estimate is held), but the pose
+    steps once when the estimate is held at frame ``sigma_frames``: 1.5 / 2.0 / 2.3 degrees of pitch with the
+    models of 2026-11-28, 1.7 / 2.1 / 2.7 with the occlusion-trained landmark cascade (both retrains of seed 1:
+    1.6-2.9). The step is the known gap (issue 10: pose must not move while the image does not); the bound
+    here keeps it from growing."""
     from aamtrack.track.replay import ReplayFrame
 
     model = load_model(default_model_path("3d"))
+    held = Tracker(model).config.sigma_frames
     with open_frames(SAMPLE) as frames:
         images = [f.image for f, _ in zip(frames, range(201), strict=False)]
     for k in (0, 150, 200):
-        results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, images[k]) for i in range(60)))
+        results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, images[k]) for i in range(held + 10)))
         assert all(r.success for r in results)
-        angles = np.degrees(np.array([r.rotation for r in results[20:]]))
-        assert np.ptp(angles, axis=0).max() < 2.5  # degrees, pitch, yaw and roll over 40 identical frames
+        angles = np.degrees(np.array([r.rotation for r in results]))
+        assert np.ptp(angles[20:held - 1], axis=0).max() < 0.2  # degrees: no walk while the shape is estimated
+        assert np.ptp(angles[held + 1:], axis=0).max() < 0.2  # nor once it is held
+        assert np.abs(angles[held + 1] - angles[held - 1]).max() < 3.5  # the one step when it is held
 
 
 def test_reported_pose_comes_from_the_points_without_the_jaw():
@@ -171,8 +178,9 @@ def test_a_blurred_still_is_looked_at_again_sharpened():
 
 @pytest.mark.parametrize("kind", ["3d", "2d"])
 def test_shipped_shape_prior_is_the_one_training_learns_from_helen_train(kind):
-    """The shipped models' shape prior (added to the session-31 models, not retrained) is what ``train_model``
-    learns: ``learn_shape_prior`` of helen_train's labels and their mirrors, in OpenCV's pixels as training holds
+    """The shipped models' shape prior (added to the 2D model of 2026-11-28, not retrained; learned by the 3D
+    model's training of 2026-11-29) is what ``train_model`` learns: ``learn_shape_prior`` of helen_train's
+    labels and their mirrors, in OpenCV's pixels as training holds
     them."""
     from conftest import shared_path
 
@@ -195,11 +203,13 @@ def test_shipped_shape_prior_is_the_one_training_learns_from_helen_train(kind):
     assert np.allclose(shipped.variances, prior.variances, rtol=1e-9)
 
 
-def test_a_hand_over_the_mouth_leaves_fewer_wrong_shapes_with_the_shape_test():
+def test_a_hand_over_the_mouth_leaves_the_points_where_the_face_is():
     """The sample clip with a skin-coloured ellipse over the mouth and chin on frames 100-199, placed from the clean
-    track's points: with the shape test (``TrackerConfig.max_shape_score``, ``shape_recheck_above``) fewer of those
-    frames are reported tracked with points more than 0.10 eye distances from the clean track's than without it
-    (20 -> 1 when written), none of them with an implausible shape, and the frames after the hand are tracked."""
+    track's points: few of those frames are reported tracked with points more than 0.10 eye distances from the
+    clean track's, with the shape test (``TrackerConfig.max_shape_score``, ``shape_recheck_above``) and without
+    it, none with an implausible shape, and the frames after the hand are tracked. With the landmark cascade of
+    2026-11-28 (no occluded training copies) the hand pulled 20 frames' points off without the shape test and 1
+    with it; with the occlusion-trained cascade (``TrainConfig.landmark_occlude_share``) 0 and 0 when written."""
     import sys
     from dataclasses import replace
 
@@ -229,5 +239,5 @@ def test_a_hand_over_the_mouth_leaves_fewer_wrong_shapes_with_the_shape_test():
             scores = [model.shape_prior.score(r.landmarks - PIXEL_ORIGIN) for r in results[100:200] if r.success]
             assert max(scores) <= on.config.max_shape_score
             assert all(r.success for r in results[210:])  # the track is back once the hand is gone
-    assert wrong["off"] >= 10  # the premise: the hand pulls the points off without the test
-    assert wrong["on"] <= 0.5 * wrong["off"]
+    print("frames off the clean track by more than 0.10:", wrong)
+    assert wrong["on"] <= 3 and wrong["off"] <= 3  # of 100 covered frames

@@ -38,7 +38,7 @@ from .shape_prior import learn_shape_prior
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
 from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
-                        landmark_validator_fit, logistic_fit, non_face_images, soft_copy)
+                        landmark_validator_fit, logistic_fit, non_face_images, occluded_copy, soft_copy)
 
 log = logging.getLogger(__name__)
 
@@ -125,6 +125,21 @@ class TrainConfig:
     0.0241 -> 0.0266 (blurred 0.0441 -> 0.0437): one linear cascade for sharp and blurred faces fits the sharp
     ones less closely. (A first version started the blurred copies from their sharp images' fits: cap12 blurred
     0.0438 -> 0.0441, clean 0.0240 -> 0.0264, helen_test 95.2% -> 94.5%.) ``soft_share`` does better for both.
+    landmark_occlude_share: 3D only, the first landmark cascade also learns from copies of this share of the (mirrored)
+    training images with part of the face covered (``train.validator.occluded_copy``: one or two ellipses or
+    turned rectangles filled with another photo's patch or a flat grey), with their sharp images' labels, each
+    starting from the search's own fit of the copy from the sharp image's Haar box; as robust cascaded
+    regression does, the cascade learns to place what it cannot see from what it can (0: none). The soft and dim
+    cascades and the validators learn as without it. Measured (3D, helen_train, seed 0, the same training with
+    0 / 0.25 / 0.5, 2026-11-29): ``benchmarks/occlusion.py`` video (cap12, covered frames; NME / frames above
+    0.10) mouth 0.0812 / 22 -> 0.0717 / 11 -> 0.0654 / 0, half (tracked 79.7% -> 88.7% -> 93.3%) 0.0854 ->
+    0.0646 -> 0.0511, eye 0.0322 -> 0.0298 -> 0.0292; stills (helen_test, within NME 0.08) mouth 28.2% -> 44.5%
+    -> 45.5%, eye 67.6% -> 73.0% -> 72.7%, half 35.8% -> 39.7% -> 43.9%; clean helen_test 0.0339 -> 0.0339 ->
+    0.0346 (98.5% within 0.08 each), cap12 against dlib (``aamtrack run``) 0.0197 -> 0.0195 -> 0.0203: 0.25.
+    Seed 1 (0 -> 0.25): helen_test 0.0343 -> 0.0338, cap12 0.0209 -> 0.0196, occlusion video half 0.0835 (44
+    above 0.10) -> 0.0580 (0), mouth 0.0721 -> 0.0684, mic 0.0278 -> 0.0222. Not for the 2D model (0.25, seed
+    0): helen_test 0.0338 -> 0.0339, occlusion video mouth 0.1226 -> 0.1107, half 0.0930 -> 0.0673, but cap12
+    0.0193 -> 0.0216 (its search, held to the labels' PCA, leaves the cascade other starts).
     soft_share: a second landmark cascade for soft faces (``Model.soft_cascade``), learned on Gaussian-blurred
     copies of this share of the (mirrored) training images alone (sigma drawn in ``landmark_blur_eye``, each
     starting from the search's own fit of the copy), with the first cascade's descriptor components; a face whose
@@ -198,6 +213,7 @@ class TrainConfig:
     landmark_repeats: int = 2
     landmark_blur_share: float = 0.0
     landmark_blur_eye: tuple = (0.02, 0.08)
+    landmark_occlude_share: float = 0.25
     soft_share: float = 1.0
     landmark_validator: bool = True
     validator_negatives: int = 2
@@ -343,7 +359,7 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
 
 def _degraded_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int,
                      fits: np.ndarray, owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator, *,
-                     make: Callable | None = None, dim_below: float = 0.0) -> tuple:
+                     make: Callable | None = None, dim_below: float = 0.0, label: str = "") -> tuple:
     """Degraded copies (Gaussian-blurred unless ``make`` says otherwise) of a random ``share`` of the sharp
     training images (sigma drawn in ``eye_range`` outer eye-corner distances; a ``share`` above 1: that many
     copies per image) for a landmark cascade: each
@@ -380,7 +396,7 @@ def _degraded_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig
         images.append(fine)
         scales.append(f[-1])
         picked.append(i)
-    log.info("landmark cascade: %d %s copies", len(images), "dim" if dim_below > 0 else "blurred")
+    log.info("landmark cascade: %d %s copies", len(images), label or ("dim" if dim_below > 0 else "blurred"))
     return images, scales, np.array(picked, np.int64), np.array(copy_fits).reshape(-1, 68, 2), \
         np.array(copy_owner, np.int64)
 
@@ -801,9 +817,18 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             copied = np.r_[np.arange(n_sharp), b_of]  # each training image's source: itself, or the one blurred
             lmk_truth, lmk_groups = pts[copied], owner_group[copied]
             fits_det, owner_det = np.concatenate([fits_det, b_fits]), np.r_[owner_det, n_sharp + b_owner]
+        cascade_data = (lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups)
+        if config.landmark_occlude_share > 0 and kind == "3d":  # occluded copies, first cascade only: truth, own fits
+            donors = gray[:n_sharp]
+            o_images, o_scales, o_of, o_fits, o_owner = _degraded_copies(
+                searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
+                config.landmark_occlude_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 13),
+                make=lambda g, eye, r: occluded_copy(g, eye, r, donors=donors), label="occluded")
+            cascade_data = (lmk_images + o_images, lmk_scales + o_scales, np.concatenate([lmk_truth, pts[o_of]]),
+                            np.concatenate([fits_det, o_fits]), np.r_[owner_det, len(lmk_images) + o_owner],
+                            np.r_[lmk_groups, owner_group[o_of]])
         landmark_cascade, lmk_record = learn_landmark_cascade(
-            lmk_images, lmk_scales, lmk_truth, fits_det, owner_det, lmk_groups,
-            rng=np.random.default_rng(config.seed + 3), **lmk_kw)
+            *cascade_data, rng=np.random.default_rng(config.seed + 3), **lmk_kw)
         if config.soft_share > 0:  # a cascade of its own for soft faces, on blurred copies alone
             b_images, b_scales, b_of, b_fits, b_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,

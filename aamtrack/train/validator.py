@@ -134,6 +134,46 @@ def soft_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.n
     return out.astype(np.float32)
 
 
+def occluded_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator, *, donors: list | None = None,
+                  centre: np.ndarray | None = None) -> np.ndarray:
+    """A copy of a grey (H, W) float32 face image with part of the face covered, for the landmark cascade to learn
+    to place points it cannot see from the ones it can (robust cascaded regression learns so on COFW). One or two
+    occluders, each an ellipse or a turned rectangle with axes 0.2-0.7 outer eye-corner distances (``eye_px``),
+    centred anywhere within about a face's extent of ``centre`` (default: the image's centre, where the training
+    crops have their faces); filled with a patch of a random image of ``donors`` (another face, hair or
+    background), or a flat grey level with a gradient and noise (a hand, a sleeve, a microphone); edges
+    anti-aliased. Made generic on purpose: no particular hand or object, nothing of the occlusion benchmark's."""
+    import cv2
+
+    h, w = gray.shape
+    c = np.array([w / 2.0, h / 2.0]) if centre is None else np.asarray(centre, float)
+    out = gray.astype(np.float32).copy()
+    for _ in range(1 + int(rng.random() < 0.25)):
+        mask = np.zeros((h, w), np.uint8)
+        at = c + rng.uniform([-0.9, -0.8], [0.9, 1.2]) * eye_px  # x across the face, y from the brows to the chin
+        axes = rng.uniform(0.2, 0.7, 2) * eye_px
+        angle = rng.uniform(0.0, 180.0)
+        if rng.random() < 0.6:
+            cv2.ellipse(mask, (int(round(at[0])), int(round(at[1]))), (max(1, int(round(axes[0]))),
+                        max(1, int(round(axes[1])))), angle, 0, 360, 255, -1)
+        else:
+            box = cv2.boxPoints(((float(at[0]), float(at[1])), (float(2 * axes[0]), float(2 * axes[1])), angle))
+            cv2.fillConvexPoly(mask, np.round(box).astype(np.int32), 255)
+        soft = cv2.GaussianBlur(mask.astype(np.float32) / 255.0, (0, 0), 1.0)
+        if donors and rng.random() < 0.5:
+            d = donors[rng.integers(len(donors))]
+            dy, dx = rng.integers(0, max(1, d.shape[0] - h + 1)), rng.integers(0, max(1, d.shape[1] - w + 1))
+            fill = cv2.resize(np.asarray(d, np.float32), (w, h)) if d.shape != (h, w) else d[dy:dy + h, dx:dx + w]
+            fill = np.roll(fill, (int(rng.integers(-h // 3, h // 3)), int(rng.integers(-w // 3, w // 3))), (0, 1))
+        else:
+            yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+            g = rng.normal(0.0, 0.3, 2) / max(eye_px, 1.0)
+            fill = rng.uniform(20.0, 235.0) * (1.0 + g[0] * (xx - at[0]) + g[1] * (yy - at[1]))
+            fill = fill + rng.normal(0.0, rng.uniform(1.0, 8.0), (h, w))
+        out = out * (1.0 - soft) + np.asarray(fill, np.float32) * soft
+    return np.clip(out, 0, 255).astype(np.float32)
+
+
 def dark_noise_image(shape: tuple, rng: np.random.Generator) -> np.ndarray:
     """A grey (H, W) float32 frame with no face for the validator of dim faces: a dark level (10-40) and sensor
     noise (sigma 3-10), as a camera with the lights out gives."""

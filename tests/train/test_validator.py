@@ -135,3 +135,33 @@ def test_soft_copies_are_softer_and_keep_the_image_format():
         out = soft_copy(gray, 100.0, rng)
         assert out.shape == gray.shape and out.dtype == np.float32
         assert sharpness(out, 1.0, pts) > s0 + 0.05
+
+
+def test_occluded_copies_cover_part_of_the_face_and_nothing_far_from_it():
+    """``occluded_copy``: each copy changes a connected part of the image near the face's centre (at most about
+    a face's extent away), covering between a few percent and about half of the face's box; nothing changes far
+    from the face; float32 of the image's shape; ``donors`` patches are used."""
+    from scipy import ndimage
+
+    from aamtrack.train.validator import occluded_copy
+
+    rng = np.random.default_rng(SEED)
+    gray = rng.uniform(60, 200, (240, 320)).astype(np.float32)
+    donors = [np.full((240, 320), 10.0, np.float32)]  # a donor far from every pixel of the image
+    eye = 60.0
+    centre = np.array([160.0, 120.0])
+    face = np.zeros(gray.shape, bool)
+    face[int(120 - 1.0 * eye):int(120 + 1.5 * eye), int(160 - 1.2 * eye):int(160 + 1.2 * eye)] = True
+    shares, dark = [], 0
+    for _ in range(40):
+        out = occluded_copy(gray, eye, rng, donors=donors, centre=centre)
+        assert out.shape == gray.shape and out.dtype == np.float32 and 0 <= out.min() and out.max() <= 255
+        changed = np.abs(out - gray) > 0.5
+        assert not changed[~ndimage.binary_dilation(face, iterations=int(0.8 * eye))].any()  # far from the face
+        lab, n = ndimage.label(ndimage.binary_closing(changed, iterations=2))  # a fill may equal a pixel by chance
+        sizes = np.bincount(lab.ravel())[1:]
+        assert 1 <= np.sum(sizes > 0.02 * eye ** 2) <= 2  # one or two occluders
+        shares.append(changed[face].mean())
+        dark += np.mean(out[changed] < 15) > 0.5
+    assert 0.01 < np.median(shares) < 0.35 and max(shares) < 0.8
+    assert 5 <= dark <= 35  # about half from the donor (all 10), the rest flat grey levels

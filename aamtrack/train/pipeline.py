@@ -125,12 +125,14 @@ class TrainConfig:
     0.0241 -> 0.0266 (blurred 0.0441 -> 0.0437): one linear cascade for sharp and blurred faces fits the sharp
     ones less closely. (A first version started the blurred copies from their sharp images' fits: cap12 blurred
     0.0438 -> 0.0441, clean 0.0240 -> 0.0264, helen_test 95.2% -> 94.5%.) ``soft_share`` does better for both.
-    landmark_occlude_share: 3D only, the first landmark cascade also learns from copies of this share of the (mirrored)
-    training images with part of the face covered (``train.validator.occluded_copy``: one or two ellipses or
-    turned rectangles filled with another photo's patch or a flat grey), with their sharp images' labels, each
+    landmark_occlude_share: 3D only, the first landmark cascade also learns from copies of this share of the
+    (mirrored) training images with part of the face covered (``train.validator.occluded_copy``: one or two
+    ellipses or turned rectangles filled with another photo's patch or a flat grey), with their sharp images'
+    labels, each
     starting from the search's own fit of the copy from the sharp image's Haar box; as robust cascaded
     regression does, the cascade learns to place what it cannot see from what it can (0: none). The soft and dim
-    cascades and the validators learn as without it. Measured (3D, helen_train, seed 0, the same training with
+    cascades and the validators learn from the same data as without it (the first cascade's descriptor
+    components, which they share, do change). Measured (3D, helen_train, seed 0, the same training with
     0 / 0.25 / 0.5, 2026-11-29): ``benchmarks/occlusion.py`` video (cap12, covered frames; NME / frames above
     0.10) mouth 0.0812 / 22 -> 0.0717 / 11 -> 0.0654 / 0, half (tracked 79.7% -> 88.7% -> 93.3%) 0.0854 ->
     0.0646 -> 0.0511, eye 0.0322 -> 0.0298 -> 0.0292; stills (helen_test, within NME 0.08) mouth 28.2% -> 44.5%

@@ -80,47 +80,46 @@ def covered_frames(n: int) -> np.ndarray:
     return covered
 
 
+def occluded(image: np.ndarray, points: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """(a copy of image with the occluder of ``kind`` drawn from points (68, 2), visible (68,) bool: each point
+    outside the occluder)."""
+    mask = occluder_mask(kind, points, image.shape)
+    out = image.copy()
+    out[mask] = np.array(MIC if kind == "mic" else SKIN, np.uint8)
+    xy = np.clip(np.rint(points - 1.0).astype(int), 0, [image.shape[1] - 1, image.shape[0] - 1])
+    return out, ~mask[xy[:, 1], xy[:, 0]]
+
+
 def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.ndarray, np.ndarray]:
     """(frames with the occluder drawn on the covered ones, covered (n,) bool, visible (n, 68) bool: each
     reference point outside the occluder)."""
     covered = covered_frames(len(frames))
     visible = np.ones(ref.shape[:2], bool)
-    out = []
-    colour = np.array(MIC if kind == "mic" else SKIN, np.uint8)
-    for i, f in enumerate(frames):
-        if not covered[i]:
-            out.append(f)
-            continue
-        mask = occluder_mask(kind, ref[i], f.shape)
-        g = f.copy()
-        g[mask] = colour
-        out.append(g)
-        xy = np.clip(np.rint(ref[i] - 1.0).astype(int), 0, [f.shape[1] - 1, f.shape[0] - 1])
-        visible[i] = ~mask[xy[:, 1], xy[:, 0]]
+    out = list(frames)
+    for i in np.flatnonzero(covered):
+        out[i], visible[i] = occluded(frames[i], ref[i], kind)
     return out, covered, visible
 
 
 def occluded_stills(images: list, points: np.ndarray, kind: str) -> tuple[list, np.ndarray]:
     """(every image with the occluder drawn from its points, visible (n, 68) bool)."""
-    out, visible = [], np.ones(points.shape[:2], bool)
-    colour = np.array(MIC if kind == "mic" else SKIN, np.uint8)
-    for i, (im, p) in enumerate(zip(images, points)):
-        mask = occluder_mask(kind, p, im.shape)
-        g = im.copy()
-        g[mask] = colour
-        out.append(g)
-        xy = np.clip(np.rint(p - 1.0).astype(int), 0, [im.shape[1] - 1, im.shape[0] - 1])
-        visible[i] = ~mask[xy[:, 1], xy[:, 0]]
-    return out, visible
+    drawn = [occluded(im, p, kind) for im, p in zip(images, points, strict=True)]
+    return [im for im, _ in drawn], np.array([v for _, v in drawn], bool).reshape(points.shape[:2])
 
 
-def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float = 0.08) -> dict:
-    """The figures of one set of still fits (module docstring): a still not fitted counts as a failure."""
+def _errors(success, landmarks, ref, visible) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame or still: the NME over all 68 points and over the visible ones (NaN where not fitted)."""
     err = np.array([float(nme(landmarks[i], ref[i])) if success[i] else np.nan for i in range(len(ref))])
     eye = np.linalg.norm(ref[:, 45] - ref[:, 36], axis=1)
     d = np.linalg.norm(landmarks - ref, axis=2) / eye[:, None]
     vis = np.array([float(d[i][visible[i]].mean()) if success[i] and visible[i].any() else np.nan
                     for i in range(len(ref))])
+    return err, vis
+
+
+def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float = 0.08) -> dict:
+    """The figures of one set of still fits (module docstring): a still not fitted counts as a failure."""
+    err, vis = _errors(success, landmarks, ref, visible)
     return {"images": len(ref), "fitted": int(success.sum()), "within": float(np.mean(success & (err <= ok_at))),
             "nme": float(np.nanmean(err)) if success.any() else float("nan"),
             "visible_nme": float(np.nanmean(vis)) if success.any() else float("nan"),
@@ -133,11 +132,7 @@ def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float =
 def score(success, landmarks, confidence, ref, covered, visible, clean) -> dict:
     """The figures of one track (module docstring); ``clean`` the clean video's per-frame NME."""
     n = len(ref)
-    err = np.array([float(nme(landmarks[i], ref[i])) if success[i] else np.nan for i in range(n)])
-    eye = np.linalg.norm(ref[:, 45] - ref[:, 36], axis=1)
-    d = np.linalg.norm(landmarks - ref, axis=2) / eye[:, None]
-    vis_err = np.array([float(d[i][visible[i]].mean()) if success[i] and visible[i].any() else np.nan
-                        for i in range(n)])
+    err, vis_err = _errors(success, landmarks, ref, visible)
     after = np.zeros(n, bool)
     for s in range(START + SPAN, n, EVERY):
         after[s:s + AFTER] = True
@@ -245,18 +240,15 @@ def main(argv=None) -> int:
               "max_shape_score": args.max_shape_score, "span": SPAN, "every": EVERY, "rows": []}
     print(f"machine: {report['machine']}")
     ran = False
-    if args.video != "none":
-        if Path(args.video).exists():
-            _video_rows(models, kinds, Path(args.video), args, report)
+    for name, value, found, rows in (("video", args.video, Path.exists, _video_rows),
+                                     ("stills", args.stills, Path.is_dir, _still_rows)):
+        if value == "none":
+            continue
+        if found(Path(value)):
+            rows(models, kinds, Path(value), args, report)
             ran = True
         else:
-            print(f"video skipped: {args.video} not found (needs ../shared/data)")
-    if args.stills != "none":
-        if Path(args.stills).is_dir():
-            _still_rows(models, kinds, Path(args.stills), args, report)
-            ran = True
-        else:
-            print(f"stills skipped: {args.stills} not found (needs ../shared/data)")
+            print(f"{name} skipped: {value} not found (needs ../shared/data)")
     if args.json and ran:
         write_json(args.json, report)
     return 0

@@ -96,6 +96,18 @@ class TrackerConfig:
     mirrored copy of its face either way); pose check video geodesic median / p95 7.04 / 13.05 -> 6.45 / 11.52
     (with expression 7.04 / 9.06 -> 6.80 / 9.60). Restarting at 0 instead of the median measured better on cap12
     (0.0251) and worse on dim_small (93.5% tracked, under the 95% bar) and hard2 (0.0455).
+    sigma_running: while the person's shape units are being estimated, every search after the first estimate
+        holds them at the median of the estimates so far (as it holds the final median after), and a frame's
+        reported pose and 3D landmarks use that median too, so the estimate's end changes nothing: with the
+        search's shape units free until the median is held, the pose stepped once at frame ``sigma_frames`` (three
+        frames of the sample clip each shown 60 times: 1.7 / 2.1 / 2.7 degrees of pitch, 0.0 with it; pitch range
+        over all 60 frames 1.9 / 2.2 / 2.7 -> 0.8 / 1.0 / 1.5 degrees, the rest in the first five frames).
+        Measured when added (2026-11-29, shipped 3D model, against the search's free shape units): robustness
+        video rows the same within 0.0005 but dim_small 97.0% / +0.0103 -> 96.1% / +0.0107 and shake +0.0029 ->
+        +0.0034; hard clips the same but hard2 195 -> 192 / 300 tracked at 0.0368 -> 0.0359; still_shots 92.6% ->
+        92.5% within 0.08, 132 -> 120 frames above 0.10; ``pose_check.py --grid axes --faces 4``: drift over
+        100 frames of a frontal render, pitch 1.6-2.9 -> 0.25-0.54 degrees, yaw 0.2-0.7 -> 0.16-0.42; video
+        geodesic median / p95 4.36 / 8.54 -> 4.54 / 8.69 (with expression 3.94 / 8.24 -> 3.89 / 8.53).
     sigma_from_landmarks: each of those estimates is the landmark fit's shape units (``Tracker.shape_sample``:
     pose, coefficients and shape units fitted to the fit's final 68 points, as the poster's sigma learning fits
     annotated points), not the texture search's; a dim face's fit gives the search's (its points follow the
@@ -253,6 +265,7 @@ class TrackerConfig:
     sigma_frames: int = 50
     sigma_min_confidence: float = 0.9
     sigma_restart: bool = True
+    sigma_running: bool = True
     sigma_from_landmarks: bool = True
     pose_from_points: bool = True
     skip_coarse: int = 1
@@ -853,10 +866,13 @@ class Tracker:
                     if cfg.sigma_per_shot:
                         shape_params, sigma_samples = None, []
             lost_track = None  # (fit, reason) of this frame's tracked search when it was lost
+            searched_sigma = shape_params
+            if searched_sigma is None and cfg.sigma_running and sigma_samples:
+                searched_sigma = np.median(sigma_samples, axis=0)
             while True:
                 if p is None:
                     thorough = lost_track is not None or misses % max(1, cfg.thorough_every) == 0
-                    res, t_det = self.detect_and_fit(image, shape_params, thorough=thorough)
+                    res, t_det = self.detect_and_fit(image, searched_sigma, thorough=thorough)
                     for k, v in t_det.items():
                         timings[k] = timings.get(k, 0.0) + v
                     if res is None:
@@ -868,7 +884,7 @@ class Tracker:
                         step = cfg.predict_damping * (p - p_prev)
                         start[[2, 4, 5]] += step[[2, 4, 5]]
                     t1 = time.perf_counter()
-                    res, t_pyr = self.search_from(image, start, shape_params, soft=soft, dim=dim,
+                    res, t_pyr = self.search_from(image, start, searched_sigma, soft=soft, dim=dim,
                                                   margin=cfg.roi_margin_tracked)
                     timings["pyramid"] = t_pyr
                     timings["search"] = time.perf_counter() - t1 - t_pyr
@@ -881,7 +897,7 @@ class Tracker:
                     lost_track, p, p_prev = (res, reason), None, None  # looked for in this frame at once
                     continue
                 if not reason and status == "tracked":
-                    res, status = self._second_look(image, res, shape_params, timings)
+                    res, status = self._second_look(image, res, searched_sigma, timings)
                 break
             if res is None or reason:
                 if res is None and lost_track is None:
@@ -910,4 +926,9 @@ class Tracker:
                 p = self.tracked_start(res)
             soft, dim = res.soft, res.dim
             misses = 0
-            yield self._result(frame, status, res, timings), res, frame, shape_params, cut
+            report = res
+            if estimate and shape_params is None and cfg.sigma_running and sigma_samples:
+                q = res.p.copy()
+                q[n_q:] = np.median(sigma_samples, axis=0)
+                report = replace(res, p=q)
+            yield self._result(frame, status, report, timings), res, frame, shape_params, cut

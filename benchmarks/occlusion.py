@@ -16,7 +16,9 @@ they are, and either place the hidden ones where the face's shape says or report
 shape at full confidence. Stills (``--stills``, default helen_test; 2026-11-29): every image with the same
 occluder drawn from its human labels, fitted on its own as ``aamtrack fit`` fits it; per variant the share of
 all images fitted within NME 0.08, the mean NME of the fitted ones over all 68 points and over the visible ones,
-how many lie above 0.10 and their mean confidence, next to the clean images'. ``--max-shape-score`` sets
+how many lie above 0.10 and their mean confidence, and Spearman's rank correlation of confidence and NME over
+the fitted ones (``accuracy.confidence_rank_correlation``: does the confidence still say which fits are off?),
+next to the clean images'. ``--max-shape-score`` sets
 ``TrackerConfig.max_shape_score`` (0: the shape test off, as before it). ``--write DIR`` also writes each video
 variant as DIR/occluded_NAME.avi (MJPG) for ``aamtrack run --video``.
 """
@@ -119,6 +121,8 @@ def _errors(success, landmarks, ref, visible) -> tuple[np.ndarray, np.ndarray]:
 
 def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float = 0.08) -> dict:
     """The figures of one set of still fits (module docstring): a still not fitted counts as a failure."""
+    from accuracy import confidence_rank_correlation
+
     err, vis = _errors(success, landmarks, ref, visible)
     return {"images": len(ref), "fitted": int(success.sum()), "within": float(np.mean(success & (err <= ok_at))),
             "nme": float(np.nanmean(err)) if success.any() else float("nan"),
@@ -126,7 +130,9 @@ def score_stills(success, landmarks, confidence, ref, visible, *, ok_at: float =
             "above_010": int(np.sum(err[success] > 0.10)),
             "above_010_confidence": float(np.mean(confidence[success][err[success] > 0.10]))
             if np.any(err[success] > 0.10) else float("nan"),
-            "per_image_nme": np.round(err, 5).tolist()}
+            "spearman_confidence_nme": confidence_rank_correlation(confidence, err),
+            "per_image_nme": np.round(err, 5).tolist(),
+            "per_image_confidence": np.round(np.asarray(confidence, np.float64), 4).tolist()}
 
 
 def score(success, landmarks, confidence, ref, covered, visible, clean) -> dict:
@@ -203,8 +209,9 @@ def _still_rows(models, kinds, folder: Path, args, report) -> None:
     _, images, points = load_stills(folder, args.limit)
     points = points.astype(np.float64)
     print(f"\nStills: {folder} ({len(images)} images), each fitted on its own as `aamtrack fit` fits it")
-    print("| variant | model | within NME 0.08 (fitted) | NME (all 68 / visible) | above 0.10 (their confidence) |")
-    print("|---|---|---|---|---|")
+    print("| variant | model | within NME 0.08 (fitted) | NME (all 68 / visible) | above 0.10 (their confidence) "
+          "| rho(c,e) |")
+    print("|---|---|---|---|---|---|")
     for model_path in models:
         tracker = _tracker(model_path, args.max_shape_score)
         for kind in ("clean", *kinds):
@@ -215,7 +222,8 @@ def _still_rows(models, kinds, folder: Path, args, report) -> None:
                    **score_stills(success, landmarks, confidence, points, visible)}
             report["rows"].append(row)
             print(f"| {kind} | {model_path.name} | {row['within']:.1%} ({row['fitted']}) | {row['nme']:.4f} / "
-                  f"{row['visible_nme']:.4f} | {row['above_010']} ({row['above_010_confidence']:.2f}) |", flush=True)
+                  f"{row['visible_nme']:.4f} | {row['above_010']} ({row['above_010_confidence']:.2f}) "
+                  f"| {row['spearman_confidence_nme']:.2f} |", flush=True)
 
 
 def main(argv=None) -> int:

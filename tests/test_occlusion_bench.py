@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import synth
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -88,3 +89,11 @@ def test_occluded_stills_and_their_scores():
     assert abs(row["visible_nme"] - 0.5 * (0.0 + 0.12)) < 1e-9 and abs(row["above_010_confidence"] - 0.7) < 1e-12
     lost = oc.score_stills(np.array([False, True]), landmarks, np.array([0.0, 0.7]), pts, visible)
     assert lost["within"] == 0.0 and lost["fitted"] == 1 and abs(lost["nme"] - 0.12) < 1e-9  # not fitted: a failure
+    assert np.isnan(row["spearman_confidence_nme"])  # under 3 fits: no rank correlation
+    three = np.concatenate([pts, pts[:1]])
+    off = three + np.array([0.02, 0.05, 0.15])[:, None, None] * eye[[0, 1, 0], None, None]  # NME rising: 0.028, 0.071, 0.21
+    vis3 = np.ones(three.shape[:2], bool)
+    assert oc.score_stills(np.ones(3, bool), off, np.array([0.9, 0.8, 0.3]), three, vis3)[
+        "spearman_confidence_nme"] == pytest.approx(-1.0)  # the more confident, the closer
+    assert oc.score_stills(np.ones(3, bool), off, np.array([0.3, 0.8, 0.9]), three, vis3)[
+        "spearman_confidence_nme"] == pytest.approx(1.0)

@@ -91,7 +91,8 @@ def test_occluded_stills_and_their_scores():
     assert lost["within"] == 0.0 and lost["fitted"] == 1 and abs(lost["nme"] - 0.12) < 1e-9  # not fitted: a failure
     assert np.isnan(row["spearman_confidence_nme"])  # under 3 fits: no rank correlation
     three = np.concatenate([pts, pts[:1]])
-    off = three + np.array([0.02, 0.05, 0.15])[:, None, None] * eye[[0, 1, 0], None, None]  # NME rising: 0.028, 0.071, 0.21
+    # every point moved by (k, k) eye distances: NME rising, 0.028, 0.071, 0.21
+    off = three + np.array([0.02, 0.05, 0.15])[:, None, None] * eye[[0, 1, 0], None, None]
     vis3 = np.ones(three.shape[:2], bool)
     assert oc.score_stills(np.ones(3, bool), off, np.array([0.9, 0.8, 0.3]), three, vis3)[
         "spearman_confidence_nme"] == pytest.approx(-1.0)  # the more confident, the closer

@@ -107,7 +107,8 @@ class TrackerConfig:
         +0.0034; hard clips the same but hard2 195 -> 192 / 300 tracked at 0.0368 -> 0.0359; still_shots 92.6% ->
         92.5% within 0.08, 132 -> 120 frames above 0.10; ``pose_check.py --grid axes --faces 4``: drift over
         100 frames of a frontal render, pitch 1.6-2.9 -> 0.25-0.54 degrees, yaw 0.2-0.7 -> 0.16-0.42; video
-        geodesic median / p95 4.36 / 8.54 -> 4.54 / 8.69 (with expression 3.94 / 8.24 -> 3.89 / 8.53).
+        geodesic median / p95 4.36 / 8.54 -> 4.54 / 8.69 (with expression 3.94 / 8.24 -> 3.89 / 8.53);
+        ``video_pose.py`` (cap12's turns against MediaPipe's) the same: pitch / yaw RMS 2.68 / 1.50 -> 2.68 / 1.52.
     sigma_from_landmarks: each of those estimates is the landmark fit's shape units (``Tracker.shape_sample``:
     pose, coefficients and shape units fitted to the fit's final 68 points, as the poster's sigma learning fits
     annotated points), not the texture search's; a dim face's fit gives the search's (its points follow the

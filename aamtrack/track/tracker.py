@@ -96,19 +96,22 @@ class TrackerConfig:
     mirrored copy of its face either way); pose check video geodesic median / p95 7.04 / 13.05 -> 6.45 / 11.52
     (with expression 7.04 / 9.06 -> 6.80 / 9.60). Restarting at 0 instead of the median measured better on cap12
     (0.0251) and worse on dim_small (93.5% tracked, under the 95% bar) and hard2 (0.0455).
-    sigma_running: while the person's shape units are being estimated, every search after the first estimate
-        holds them at the median of the estimates so far (as it holds the final median after), and a frame's
-        reported pose and 3D landmarks use that median too, so the estimate's end changes nothing: with the
-        search's shape units free until the median is held, the pose stepped once at frame ``sigma_frames`` (three
-        frames of the sample clip each shown 60 times: 1.7 / 2.1 / 2.7 degrees of pitch, 0.0 with it; pitch range
-        over all 60 frames 1.9 / 2.2 / 2.7 -> 0.8 / 1.0 / 1.5 degrees, the rest in the first five frames).
-        Measured when added (2026-11-29, shipped 3D model, against the search's free shape units): robustness
-        video rows the same within 0.0005 but dim_small 97.0% / +0.0103 -> 96.1% / +0.0107 and shake +0.0029 ->
-        +0.0034; hard clips the same but hard2 195 -> 192 / 300 tracked at 0.0368 -> 0.0359; still_shots 92.6% ->
-        92.5% within 0.08, 132 -> 120 frames above 0.10; ``pose_check.py --grid axes --faces 4``: drift over
-        100 frames of a frontal render, pitch 1.6-2.9 -> 0.25-0.54 degrees, yaw 0.2-0.7 -> 0.16-0.42; video
-        geodesic median / p95 4.36 / 8.54 -> 4.54 / 8.69 (with expression 3.94 / 8.24 -> 3.89 / 8.53);
-        ``video_pose.py`` (cap12's turns against MediaPipe's) the same: pitch / yaw RMS 2.68 / 1.50 -> 2.68 / 1.52.
+    sigma_running: while the person's shape units are being estimated, every search of a clear face after the
+        first estimate holds them at the median of the estimates so far (as it holds the final median after), and
+        every frame reports its pose, shape units and 3D landmarks with the median as it stands (its own estimate
+        in), so the estimate's end changes nothing: with the search's shape units free until the median was held,
+        the pose stepped once at frame ``sigma_frames`` (three frames of the sample clip each shown 60 times:
+        1.7 / 2.1 / 2.7 degrees of pitch, 0.00 with it; pitch range over all 60 frames 1.9 / 2.2 / 2.7 -> 0.8 /
+        1.0 / 1.5 degrees, all but 0.03 of it in the first five frames). A dim face's search still searches them
+        (``FitResult.dim``): its estimate is the search's own (``shape_sample``), which a held search would only
+        repeat, locking the first frames' median in (held there too: robustness dim_small 97.0% -> 96.1% tracked,
+        +0.0103 -> +0.0107). Measured when added (2026-11-29, shipped 3D model, against the search's free shape
+        units): robustness video rows the same within 0.0001 but shake +0.0029 -> +0.0034; hard clips 2, 4-7 the
+        same; still_shots 92.6% -> 92.5% within 0.08, 132 -> 120 frames above 0.10; ``pose_check.py --grid axes
+        --faces 4``: drift over 100 frames of a frontal render, pitch 1.6-2.9 -> 0.25-0.54 degrees, yaw 0.2-0.7 ->
+        0.16-0.42; video geodesic median / p95 4.36 / 8.54 -> 4.54 / 8.69 (with expression 3.94 / 8.24 -> 3.89 /
+        8.53); ``video_pose.py`` (cap12's turns against MediaPipe's) the same: pitch / yaw RMS 2.68 / 1.50 -> 2.68
+        / 1.52; stills (``fit_still``) unchanged.
     sigma_from_landmarks: each of those estimates is the landmark fit's shape units (``Tracker.shape_sample``:
     pose, coefficients and shape units fitted to the fit's final 68 points, as the poster's sigma learning fits
     annotated points), not the texture search's; a dim face's fit gives the search's (its points follow the
@@ -868,7 +871,8 @@ class Tracker:
                         shape_params, sigma_samples = None, []
             lost_track = None  # (fit, reason) of this frame's tracked search when it was lost
             searched_sigma = shape_params
-            if searched_sigma is None and cfg.sigma_running and sigma_samples:
+            if searched_sigma is None and cfg.sigma_running and sigma_samples and not dim:  # (a dim face's own
+                # search is its estimate: ``shape_sample``)
                 searched_sigma = np.median(sigma_samples, axis=0)
             while True:
                 if p is None:
@@ -927,9 +931,9 @@ class Tracker:
                 p = self.tracked_start(res)
             soft, dim = res.soft, res.dim
             misses = 0
-            report = res
-            if estimate and shape_params is None and cfg.sigma_running and sigma_samples:
-                q = res.p.copy()
-                q[n_q:] = np.median(sigma_samples, axis=0)
-                report = replace(res, p=q)
+            report = res  # reported with the person's shape as now estimated (``sigma_running``)
+            if estimate and cfg.sigma_running and sigma_samples:
+                person = shape_params if shape_params is not None else np.median(sigma_samples, axis=0)
+                if not np.array_equal(res.p[n_q:], person):
+                    report = replace(res, p=np.r_[res.p[:n_q], person])
             yield self._result(frame, status, report, timings), res, frame, shape_params, cut

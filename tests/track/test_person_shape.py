@@ -82,3 +82,38 @@ def test_the_person_shape_is_estimated_anew_after_a_cut(synth_model3d):
     print(f"sigma after the cut moved by {shift:.3f} (max over units)")
     assert shift > 0.01  # on: the second person's own estimate
     assert np.array_equal(on[10].shape_params, on[11].shape_params)  # and held again once estimated
+
+
+def test_searches_hold_the_running_median_while_the_shape_is_estimated(synth_model3d):
+    """``TrackerConfig.sigma_running``: once the person's shape has one estimate, every tracked search of a clear
+    face holds the shape units at the median of the estimates so far (each frame's reported shape units are that
+    median), as it holds the final median after ``sigma_frames``; off, the searches before the hold search them."""
+    from aamtrack.track.replay import ReplayFrame
+    from aamtrack.track.tracker import Tracker, TrackerConfig
+
+    model3d, candide = synth_model3d
+    rng = np.random.default_rng(SEED + 7)
+    faces, _, _, _ = synth3d.posed_faces(candide, 4, rng, yaw_sd=0.0, pitch_sd=0.0, observable=OBSERVABLE)
+
+    class Recording(Tracker):
+        def search_from(self, image, start, shape_params=None, **kw):
+            self.held.append(None if shape_params is None else np.array(shape_params))
+            return super().search_from(image, start, shape_params, **kw)
+
+    plain = Tracker(model3d)
+    face = next(f for f in faces if plain.detect_and_fit(f)[0].confidence >= 0.5)
+    assert not plain.detect_and_fit(face)[0].dim  # a clear face
+    for running in (True, False):
+        tracker = Recording(model3d, config=TrackerConfig(sigma_frames=4, sigma_running=running))
+        tracker.held = []
+        results = list(tracker.track(ReplayFrame(i, i / 25.0, face) for i in range(8)))
+        assert all(r.success for r in results)
+        assert len(tracker.held) == 8  # the detection's second search (frame 0), then one per tracked frame
+        assert tracker.held[0] is None  # no estimate yet
+        if running:
+            assert all(h is not None for h in tracker.held[1:])  # held from the first estimate on
+            for r, h in zip(results[:-1], tracker.held[1:]):  # a frame reports the median with its own estimate
+                assert np.array_equal(r.shape_params, h)  # in, which the next frame's search holds
+        else:
+            assert all(h is None for h in tracker.held[1:4])  # searched until the 4 estimates are in
+            assert all(h is not None for h in tracker.held[4:])

@@ -842,6 +842,7 @@ class Tracker:
         dim = False       # ... a dim face's (its next landmark cascade without the repeats)
         shape_params = None  # the person's held shape units (3D), once estimated
         sigma_samples = []
+        person = None  # the median of sigma_samples (the person's shape as estimated so far), None without any
         estimate = self.model.shape.n_shape > 0 and cfg.sigma_frames > 0
         thumb = None      # the previous frame's (shot changes)
         misses = 0        # frames since the track was lost (or cut) without an accepted face
@@ -868,12 +869,11 @@ class Tracker:
                     p = p_prev = recent = None  # (while lost, a cut keeps the thorough searches' schedule: frames of
                     # noise all look like cuts)
                     if cfg.sigma_per_shot:
-                        shape_params, sigma_samples = None, []
+                        shape_params, sigma_samples, person = None, [], None
             lost_track = None  # (fit, reason) of this frame's tracked search when it was lost
             searched_sigma = shape_params
-            if searched_sigma is None and cfg.sigma_running and sigma_samples and not dim:  # (a dim face's own
-                # search is its estimate: ``shape_sample``)
-                searched_sigma = np.median(sigma_samples, axis=0)
+            if searched_sigma is None and cfg.sigma_running and not dim:  # (a dim face's own search is its
+                searched_sigma = person  # estimate: ``shape_sample``)
             while True:
                 if p is None:
                     thorough = lost_track is not None or misses % max(1, cfg.thorough_every) == 0
@@ -920,20 +920,19 @@ class Tracker:
             recent = (res.p, n_fitted)
             if estimate and shape_params is None and res.confidence >= cfg.sigma_min_confidence:
                 sigma_samples.append(self.shape_sample(res))
+                person = np.median(sigma_samples, axis=0)
                 if len(sigma_samples) >= cfg.sigma_frames:
-                    shape_params = np.median(sigma_samples, axis=0)
+                    shape_params = person
             p_prev = p if status == "tracked" else None
-            if estimate and shape_params is None and cfg.sigma_restart and sigma_samples:
+            if estimate and shape_params is None and cfg.sigma_restart and person is not None:
                 p = res.p.copy()
-                p[n_q:] = np.median(sigma_samples, axis=0)
+                p[n_q:] = person
                 p = self.tracked_start(replace(res, p=p))
             else:
                 p = self.tracked_start(res)
             soft, dim = res.soft, res.dim
             misses = 0
             report = res  # reported with the person's shape as now estimated (``sigma_running``)
-            if estimate and cfg.sigma_running and sigma_samples:
-                person = shape_params if shape_params is not None else np.median(sigma_samples, axis=0)
-                if not np.array_equal(res.p[n_q:], person):
-                    report = replace(res, p=np.r_[res.p[:n_q], person])
+            if cfg.sigma_running and person is not None and not np.array_equal(res.p[n_q:], person):
+                report = replace(res, p=np.r_[res.p[:n_q], person])
             yield self._result(frame, status, report, timings), res, frame, shape_params, cut

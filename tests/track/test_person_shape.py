@@ -86,8 +86,9 @@ def test_the_person_shape_is_estimated_anew_after_a_cut(synth_model3d):
 
 def test_searches_hold_the_running_median_while_the_shape_is_estimated(synth_model3d):
     """``TrackerConfig.sigma_running``: once the person's shape has one estimate, every tracked search of a clear
-    face holds the shape units at the median of the estimates so far (each frame's reported shape units are that
-    median), as it holds the final median after ``sigma_frames``; off, the searches before the hold search them."""
+    face holds the shape units at the median of the estimates so far, as it holds the final median after
+    ``sigma_frames``, and each frame reports the median with its own estimate in (what the next search holds);
+    off, the searches before the hold search them."""
     from aamtrack.track.replay import ReplayFrame
     from aamtrack.track.tracker import Tracker, TrackerConfig
 
@@ -101,8 +102,8 @@ def test_searches_hold_the_running_median_while_the_shape_is_estimated(synth_mod
             return super().search_from(image, start, shape_params, **kw)
 
     plain = Tracker(model3d)
-    face = next(f for f in faces if plain.detect_and_fit(f)[0].confidence >= 0.5)
-    assert not plain.detect_and_fit(face)[0].dim  # a clear face
+    face, fit = next((f, r) for f in faces if (r := plain.detect_and_fit(f)[0]).confidence >= 0.5)
+    assert not fit.dim  # a clear face
     for running in (True, False):
         tracker = Recording(model3d, config=TrackerConfig(sigma_frames=4, sigma_running=running))
         tracker.held = []

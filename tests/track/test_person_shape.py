@@ -118,3 +118,41 @@ def test_searches_hold_the_running_median_while_the_shape_is_estimated(synth_mod
         else:
             assert all(h is None for h in tracker.held[1:4])  # searched until the 4 estimates are in
             assert all(h is not None for h in tracker.held[4:])
+
+
+def test_weighted_median_matches_the_median_of_repeated_values():
+    """``weighted_median`` with integer weights is the lower median of each value repeated weight times (a slow
+    reference), column by column; equal weights give the lower middle value of an even count."""
+    from aamtrack.track.tracker import weighted_median
+
+    rng = np.random.default_rng(SEED)
+    for n in (1, 2, 5, 8, 13):
+        values = rng.normal(size=(n, 4))
+        weights = rng.integers(1, 6, n)
+        want = [np.sort(np.repeat(values[:, j], weights))[(weights.sum() - 1) // 2] for j in range(4)]
+        np.testing.assert_array_equal(weighted_median(values, weights.astype(float)), want)
+    np.testing.assert_array_equal(weighted_median(np.array([[4.0], [1.0], [3.0], [2.0]]), np.ones(4)), [2.0])
+
+
+def test_the_person_shape_weighs_frontal_frames_most(synth_model3d):
+    """``TrackerConfig.sigma_yaw_weight``: estimates read at a turned pose count for little while frontal ones are
+    there, even when they are the majority; a shot turned throughout still keeps its estimates (relative weights,
+    no underflow at 1.5 rad); 0 gives the plain median."""
+    from dataclasses import replace
+
+    from aamtrack.track.tracker import Tracker
+
+    model3d, _ = synth_model3d
+    tracker = Tracker(model3d)
+    frontal, turned = np.full(3, 0.2), np.full(3, -0.4)
+    samples = [frontal] * 4 + [turned] * 7
+    yaws = [0.02, -0.05, 0.08, 0.0] + [0.6] * 7
+    np.testing.assert_allclose(tracker._person(samples, yaws), frontal)
+    assert tracker.config.sigma_yaw_weight > 0  # on by default
+    # turned throughout (yaw 1.5-1.6 rad: absolute weights exp(-56) and less): weighed relative to the most frontal
+    # one, which leads (the next is weighed 0.22 of it, the rest less), rather than all underflowing to 0
+    turned_only = [turned + 0.01 * k for k in range(5)]
+    np.testing.assert_allclose(tracker._person(turned_only, [1.5, 1.52, 1.55, 1.58, 1.6]), turned)
+    np.testing.assert_allclose(tracker._person(turned_only[::-1], [1.6, 1.58, 1.55, 1.52, 1.5]), turned)
+    plain = Tracker(model3d, config=replace(tracker.config, sigma_yaw_weight=0.0))
+    np.testing.assert_allclose(plain._person(samples, yaws), turned)  # the majority, read with the turn

@@ -50,7 +50,7 @@ class HaarDetector:
         self.rolled = tuple(rolled)
 
     def detect_all(self, gray: np.ndarray, angle: float = 0.0, width: int = 0, *, equalize: str = "plain",
-                   cascade: int = 0, smallest: bool = False) -> np.ndarray:
+                   cascade: int = 0, smallest: bool = False, close: bool = False) -> np.ndarray:
         """(n, 4) float boxes (x, y, w, h), largest first, in the frame turned by ``angle`` degrees
         (counterclockwise on screen) about its centre (``unturn`` maps points back), searched at ``width``
         pixels wide at most (default ``DETECT_WIDTH``) by cascade ``cascade`` of ``CASCADES``, after histogram
@@ -60,7 +60,10 @@ class HaarDetector:
         cascade's own window (``SMALLEST_BOX``), and then come strongest first (most of the cascade's
         overlapping hits), not largest first: at those sizes a textured background gives boxes too (a face 30 px
         between the eyes in a dark textured 1920x1080 frame: 3 boxes a frame, the face's the largest in 1 of 37
-        frames and the strongest in 32)."""
+        frames and the strongest in 32). With ``close``, only boxes of at least ``CLOSE_MIN`` of the frame's
+        shorter side, searched in the frame with its edges replicated ``CLOSE_PAD`` of that side outwards: a
+        close-up whose box reaches past the frame's edge (``CLOSE_PAD``'s note); such boxes may lie partly
+        outside the frame."""
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
@@ -75,16 +78,23 @@ class HaarDetector:
             small = cv2.createCLAHE(clipLimit=LOCAL_CLIP, tileGridSize=(LOCAL_TILES, LOCAL_TILES)).apply(small)
         else:
             raise ValueError(f"equalize {equalize!r}: one of {', '.join(EQUALIZATIONS)}")
+        m = SMALLEST_BOX if smallest else max(SMALLEST_BOX, int(self.min_face_fraction * min(small.shape)))
+        pad = 0
+        if close:
+            m = max(m, int(CLOSE_MIN * min(small.shape)))
+            pad = int(round(CLOSE_PAD * min(small.shape)))
+            small = cv2.copyMakeBorder(small, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
         if angle:
             h, w = small.shape
             M = cv2.getRotationMatrix2D((w / 2, h / 2), angle, 1.0)
             small = cv2.warpAffine(small, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        m = SMALLEST_BOX if smallest else max(SMALLEST_BOX, int(self.min_face_fraction * min(small.shape)))
         boxes, hits = self.cascades[cascade].detectMultiScale2(small, scaleFactor=self.scale_factor,
                                                                minNeighbors=self.min_neighbors[cascade], minSize=(m, m))
         if len(boxes) == 0:
             return np.zeros((0, 4))
-        boxes = np.asarray(boxes, float) / f
+        boxes = np.asarray(boxes, float)
+        boxes[:, :2] -= pad
+        boxes /= f
         if smallest:  # strongest first: at the smallest sizes the background gives boxes too, with fewer hits
             return boxes[np.lexsort((-boxes[:, 2] * boxes[:, 3], -np.asarray(hits).ravel()))]
         return boxes[np.argsort(-boxes[:, 2] * boxes[:, 3])]
@@ -98,7 +108,8 @@ class HaarDetector:
         one at up to twice the detection width after clipped histogram equalisation (small faces); the largest
         in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
         back); the largest upright one at up to twice the detection width after local (CLAHE) equalisation (small
-        faces again); and, when ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
+        faces again); the largest close-up, its box reaching past the frame's edges (``CLOSE_PAD``); and, when
+        ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
         light), then the smallest faces after local equalisation too (``SMALLEST_WIDTHS``, then with the second
         cascade). None when there is none: a frame without a face costs all of these searches, the thorough ones
         most (``TrackerConfig.thorough_every`` has the figures).
@@ -123,23 +134,25 @@ class HaarDetector:
         face had been 0.09 off: 60 more frames above 0.10, none fewer within 0.08). Its cost, on every lost
         frame without a face: the quick searches of a dim noisy room 163 -> 186 ms at 640x480, 132 -> 151 ms at
         1280x720 (medians, one core)."""
-        for angle, width, equalize, cascade, smallest in self._searches(gray.shape[1], thorough):
-            boxes = self.detect_all(gray, angle, width, equalize=equalize, cascade=cascade, smallest=smallest)
+        for angle, width, equalize, cascade, smallest, close in self._searches(gray.shape[1], thorough):
+            boxes = self.detect_all(gray, angle, width, equalize=equalize, cascade=cascade, smallest=smallest,
+                                    close=close)
             if len(boxes):
                 return boxes[0], angle
         return None
 
     def _searches(self, frame_width: int, thorough: bool = True) -> list:
-        """``find``'s searches (angle, width, equalisation, cascade, smallest) for a frame this wide."""
-        tries = [(0.0, DETECT_WIDTH, "plain", 0, False), (0.0, 2 * DETECT_WIDTH, "clipped", 0, False)]
-        tries += [(angle, DETECT_WIDTH, "plain", 0, False) for angle in self.rolled]
-        tries += [(0.0, 2 * DETECT_WIDTH, "local", 0, False)]
+        """``find``'s searches (angle, width, equalisation, cascade, smallest, close) for a frame this wide."""
+        tries = [(0.0, DETECT_WIDTH, "plain", 0, False, False), (0.0, 2 * DETECT_WIDTH, "clipped", 0, False, False)]
+        tries += [(angle, DETECT_WIDTH, "plain", 0, False, False) for angle in self.rolled]
+        tries += [(0.0, 2 * DETECT_WIDTH, "local", 0, False, False)]
+        tries += [(0.0, DETECT_WIDTH, "plain", 0, False, True)]  # a close-up past the frame's edges
         if not thorough:
             return tries
-        tries += [(0.0, DETECT_WIDTH, equalize, cascade, False) for equalize, cascade in UNEVEN]
+        tries += [(0.0, DETECT_WIDTH, equalize, cascade, False, False) for equalize, cascade in UNEVEN]
         widths = smallest_widths(frame_width)
-        smallest = [(0.0, width, "local", 0, True) for width in widths]
-        return tries + smallest + [(0.0, widths[-1], "local", 1, True)]  # and the second cascade, widest only
+        smallest = [(0.0, width, "local", 0, True, False) for width in widths]
+        return tries + smallest + [(0.0, widths[-1], "local", 1, True, False)]  # the second cascade, widest only
 
     def more(self, gray: np.ndarray, tried=()) -> Iterator[np.ndarray]:
         """Upright boxes other than ``tried`` ((x, y, w, h) upright boxes whose fits failed), best guesses first:
@@ -147,12 +160,13 @@ class HaarDetector:
         order). A box overlapping one already given or tried by more than ``SAME_BOX`` (intersection over union)
         is skipped. Each search runs only when the boxes before it are used up."""
         seen = [np.asarray(b, float) for b in tried]
-        searches = [(width, equalize, cascade, smallest, slice(0, 2))
-                    for angle, width, equalize, cascade, smallest in self._searches(gray.shape[1]) if angle == 0.0]
-        searches[0] = searches[0][:4] + (slice(1, 3),)  # the first search's largest box is what ``find`` gave
-        for width, equalize, cascade, smallest, which in searches:
-            for box in self.detect_all(gray, 0.0, width, equalize=equalize, cascade=cascade,
-                                       smallest=smallest)[which]:
+        searches = [(width, equalize, cascade, smallest, close, slice(0, 2))
+                    for angle, width, equalize, cascade, smallest, close in self._searches(gray.shape[1])
+                    if angle == 0.0]
+        searches[0] = searches[0][:5] + (slice(1, 3),)  # the first search's largest box is what ``find`` gave
+        for width, equalize, cascade, smallest, close, which in searches:
+            for box in self.detect_all(gray, 0.0, width, equalize=equalize, cascade=cascade, smallest=smallest,
+                                       close=close)[which]:
                 if all(overlap(box, other) <= SAME_BOX for other in seen):
                     seen.append(box)
                     yield box
@@ -193,6 +207,19 @@ UNEVEN = (("local", 0), ("local", 1))
 # at 1920x1080: 46 -> 55, with a box on 4 of 60 empty room frames either way. small30_hd 84.2% -> 94.2% within
 # NME 0.08; small30 95.8% -> 96.4%; a thorough search of a frame without a face costs about the same (the room
 # at 1920x1080: 0.84 -> 0.88 s).
+# Close-ups: a face filling the frame, its chin or brow at the frame's edge, as webcams, phones and video calls
+# frame a talking head. Haar's box reaches past the face's outline (about the brows to below the chin) and must
+# lie inside the searched image, so such a face is not found at all, however clear. The frame's edge rows and
+# columns replicated outwards give the box room. Measured 2026-11-29 (shipped 3D model, /tmp script: cap12
+# zoomed about its face so the 68 landmarks' height is 0.9 / 1.0 / 1.1 / 1.2 of the frame's, tracked as ``aamtrack
+# run`` tracks): tracked frames 87.7% / 46.9% / 33.7% / 72.1% -> 100% / 100% / 95.4% / 73.0% (NME 0.0202 / 0.0215 /
+# 0.0241 / 0.0308; at 0.8 100% either way); of 134 frames at 0.9 ``find`` found 31 -> 128. Searched after the
+# other quick searches, it changes nothing where they find a face: the robustness suite's video rows, hard clips,
+# still shots and helen_test (3D 0.0339, 98.5% within 0.08) the same; of its still variants' 4,620 photos (and
+# mirrors) 8 reach it with a box, one of them crossing NME 0.08 (overexposed: 0.0793 -> 0.088). A frame without a
+# face costs about 1-4 ms more (grey or noisy 640x480 and 1280x720, quick searches: 24-355 ms before).
+CLOSE_PAD = 0.25  # share of the frame's shorter side added on every side (edges replicated)
+CLOSE_MIN = 0.45  # ... searched for boxes at least this share of that side: close-ups only, few scales
 SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH
 SMALLEST_BOX = 20  # pixels of the searched image: the smallest box of every search (the cascades' windows are 20-24)
 

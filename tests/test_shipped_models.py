@@ -239,3 +239,43 @@ def test_a_hand_over_the_mouth_leaves_the_points_where_the_face_is():
             assert all(r.success for r in results[210:])  # the track is back once the hand is gone
     print("frames off the clean track by more than 0.10:", wrong)
     assert wrong["on"] <= 3 and wrong["off"] <= 3  # of 100 covered frames
+
+
+def test_a_close_up_filling_the_frame_is_found_and_tracked():
+    """The sample's first 40 frames zoomed in so the face's landmarks span the frame's height (brows at the top
+    edge, chin at the bottom: Haar's box would reach past both). Before the close-up search
+    (``detector.CLOSE_PAD``) no search found the face (cap12 zoomed so: 47% of its frames tracked, all of the
+    rest 'no face detected'); now every frame is tracked from the first, and the points agree with the un-zoomed
+    track's moved by the zoom."""
+    from aamtrack.detector import HaarDetector
+    from aamtrack.mesh.landmarks import affine_points
+    from aamtrack.metrics import nme
+    from aamtrack.track.replay import ReplayFrame
+
+    model = load_model(default_model_path("3d"))
+    with open_frames(SAMPLE) as frames:
+        images = [f.image for f, _ in zip(frames, range(40), strict=False)]
+    plain = list(Tracker(model).track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
+    assert all(r.success for r in plain)
+    pts = np.array([r.landmarks for r in plain])
+    H, W = images[0].shape[:2]
+    centre, height = np.median(pts.mean(1), 0), np.median(np.ptp(pts[:, :, 1], axis=1))
+    s = 1.0 * H / height  # the landmarks span the frame's height
+    M = np.array([[s, 0.0, W / 2 - s * centre[0]], [0.0, s, H / 2 - s * centre[1]]])
+    import cv2
+
+    zoomed = [cv2.warpAffine(im, M, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+              for im in images]
+
+    class NoCloseUp(HaarDetector):
+        def _searches(self, frame_width, thorough=True):
+            return [t for t in super()._searches(frame_width, thorough) if not t[5]]
+
+    grey = cv2.cvtColor(zoomed[0], cv2.COLOR_BGR2GRAY)
+    assert NoCloseUp().find(grey) is None  # the premise: none of the other searches finds this face
+    results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(zoomed)))
+    assert [r.status for r in results] == ["detected"] + ["tracked"] * (len(zoomed) - 1)
+    # (pixel centres: the same convention both ways; 1-based points moved as 0-based ones and back)
+    errors = [float(nme(r.landmarks, affine_points(p - 1.0, M) + 1.0)) for r, p in zip(results, pts)]
+    print("close-up against the un-zoomed track, NME mean / max:", np.mean(errors), np.max(errors))
+    assert np.mean(errors) < 0.04 and np.max(errors) < 0.08  # the same face, within a fit's error

@@ -85,36 +85,60 @@ def test_unturn_inverts_the_turn():
 
 
 @pytest.mark.parametrize("width,expected_widths",
-                         [(1920, (320, 640, 320, 320, 640, 320, 320, 640, 1280, 1920, 1920)),
-                          (1280, (320, 640, 320, 320, 640, 320, 320, 640, 1280, 1280)),
-                          (640, (320, 640, 320, 320, 640, 320, 320, 640, 640)),
-                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320))])
+                         [(1920, (320, 640, 320, 320, 640, 320, 320, 320, 640, 1280, 1920, 1920)),
+                          (1280, (320, 640, 320, 320, 640, 320, 320, 320, 640, 1280, 1280)),
+                          (640, (320, 640, 320, 320, 640, 320, 320, 320, 640, 640)),
+                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320, 320))])
 def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(width, expected_widths):
     """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it
     after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by
-    +30 and -30 degrees, upright at up to twice DETECT_WIDTH after local equalisation (small faces again), then
-    the thorough ones: upright after local equalisation with each cascade (uneven light), then the smallest
-    faces after local equalisation at 2, 4 and 6 times DETECT_WIDTH, as far as the frame is wide (a search the
-    frame's width already covered is not repeated), and last the smallest faces with the second cascade at the
-    widest of those."""
+    +30 and -30 degrees, upright at up to twice DETECT_WIDTH after local equalisation (small faces again), a
+    close-up past the frame's edges (``close``), then the thorough ones: upright after local equalisation with
+    each cascade (uneven light), then the smallest faces after local equalisation at 2, 4 and 6 times
+    DETECT_WIDTH, as far as the frame is wide (a search the frame's width already covered is not repeated), and
+    last the smallest faces with the second cascade at the widest of those."""
     from aamtrack import detector as det_module
 
     calls = []
 
     class Recording(HaarDetector):
         def detect_all(self, gray, angle=0.0, width=0, **kw):
-            calls.append((angle, width, kw.get("equalize", "plain"), kw.get("cascade", 0), kw.get("smallest", False)))
+            calls.append((angle, width, kw.get("equalize", "plain"), kw.get("cascade", 0), kw.get("smallest", False),
+                          kw.get("close", False)))
             return super().detect_all(gray, angle, width, **kw)
 
     assert det_module.DETECT_WIDTH == 320  # the widths below are written for it
     assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
-    n_small = len(expected_widths) - 7
+    n_small = len(expected_widths) - 8
     assert [c[1] for c in calls] == list(expected_widths)
-    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0] + [0.0] * n_small
-    assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "local", "local"] + \
+    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * n_small
+    assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "plain", "local", "local"] + \
         ["local"] * n_small
-    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 1] + [0] * (n_small - 1) + [1]
-    assert [c[4] for c in calls] == [False] * 7 + [True] * n_small
+    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 0, 1] + [0] * (n_small - 1) + [1]
+    assert [c[4] for c in calls] == [False] * 8 + [True] * n_small
+    assert [c[5] for c in calls] == [False] * 5 + [True] + [False] * (2 + n_small)
+
+
+def test_close_up_boxes_come_back_in_the_frame_and_may_reach_past_it():
+    """``detect_all(close=True)`` searches the frame with its edges replicated outwards and maps the boxes back:
+    a face drawn whole in a larger frame and the same frame cut through the face's box give the same box (within
+    the searches' scale steps), partly outside the cut frame; boxes smaller than CLOSE_MIN of the frame's shorter
+    side are not looked for."""
+    from aamtrack import detector as det_module
+
+    det = HaarDetector()
+    frame = cv2.cvtColor(_sample_face_frame(), cv2.COLOR_BGR2GRAY)
+    whole = det.detect_all(frame)
+    assert len(whole) == 1  # the premise: the sample's face, found whole
+    x, y, w, h = whole[0]
+    cut = np.ascontiguousarray(frame[int(y + 0.15 * h):int(y + h + 5), int(x - 10):int(x + w + 10)])
+    assert len(det.detect_all(cut)) == 0  # the box reaches past the cut frame's top: not found as it is
+    box = det.detect_all(cut, close=True)
+    assert len(box) == 1
+    moved = box[0] + [int(x - 10), int(y + 0.15 * h), 0, 0]  # back in the whole frame
+    assert np.abs(moved - whole[0]).max() < 0.15 * w  # the same face's box
+    assert moved[1] < y + 0.15 * h  # its top outside the cut frame
+    assert box[0][2] >= det_module.CLOSE_MIN * min(cut.shape) - 1
 
 
 @pytest.mark.shared_data
@@ -377,3 +401,13 @@ def test_the_smallest_searches_give_the_strongest_box_first():
     print(f"first box on the face {first_on} of 10, largest box {largest_on}")
     assert largest_on <= 2
     assert first_on >= 6
+
+
+def _sample_face_frame() -> np.ndarray:
+    """The bundled sample clip's first frame (400x300 BGR; its face about 60 px between the outer eye corners)."""
+    from pathlib import Path
+
+    from aamtrack.io.frames import open_frames
+
+    with open_frames(Path(__file__).resolve().parents[2] / "samples" / "cap12_first12s.mp4") as frames:
+        return next(iter(frames)).image

@@ -22,7 +22,10 @@ Variants (each an image transform that moves the reference points with the image
     detector, which shrinks large frames, must still find),
     rot+30 / rot-30 (in-plane rotation about the image centre, reflected border; + is counter-clockwise on
     screen), mirror (left-right flip, reference permuted with ``IBUG_MIRROR``), dim_small (all at once, as in a
-    dim room: shrunk to 45 px between the eyes, blurred by 0.04 of that, dark_cast's gains, noise sigma 8);
+    dim room: shrunk to 45 px between the eyes, blurred by 0.04 of that, dark_cast's gains, noise sigma 8),
+    close_up (zoomed about the face until its 68 points span the frame's height, as a phone or a video call
+    frames a talking head: brows at the top edge, chin at the bottom, edges replicated where the zoom runs out
+    of picture; a video is zoomed once, by its median face);
     video only: rot_sweep (roll 30 sin(2 pi t / 10 s) degrees about the image centre), shake (a hand-held
     camera's shake: each frame moved by o_t = 0.6 o_(t-1) + a jump of up to 0.35 outer eye distances in a random
     direction, so the face jumps by up to 0.35 eye distances a frame (23 px on cap12), where the tracker's
@@ -87,7 +90,7 @@ for _path in (str(REPO), str(Path(__file__).resolve().parent)):
 
 from _common import machine_name, write_json  # noqa: E402
 from aamtrack.mesh.landmarks import affine_points, mirror_points  # noqa: E402
-from aamtrack.metrics import eye_distance, from_dlib, nme  # noqa: E402
+from aamtrack.metrics import PIXEL_ORIGIN, eye_distance, from_dlib, nme  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 SEED = 20261121
@@ -118,6 +121,7 @@ DIM_BLUR_EYE = 0.04              # blurred by this share of it, darkened by DARK
 DIM_NOISE = 8.0                  # and this sensor noise
 SKIN_BGR = (110, 140, 190)
 FILL_GREY = 128
+CLOSE_FILL = 1.0                 # close_up: the face's points span this share of the frame's height
 HD_FRAME = (1920, 1080)  # small30_hd's frame (w, h): stills only (3.7 GB for cap12's frames)
 
 GOAL_TRACKED = 0.95      # share of face frames tracked, every video variant
@@ -314,6 +318,26 @@ def _all_faces(pairs) -> tuple[list, np.ndarray, np.ndarray]:
     return [a for a, _ in pairs], np.stack([b for _, b in pairs]), np.ones(len(pairs), bool)
 
 
+def close_up(image, points, *, centre, height: float, fill: float = CLOSE_FILL):
+    """Zoomed about ``centre`` (x, y) so a face ``height`` px tall (its points' extent) spans ``fill`` of the
+    frame's height, same size, bilinear, edges replicated; the points moved with it."""
+    h, w = image.shape[:2]
+    s = fill * h / height
+    matrix = np.array([[s, 0.0, (w - 1) / 2.0 - s * centre[0]], [0.0, s, (h - 1) / 2.0 - s * centre[1]]])
+    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out, affine_points(points, matrix)
+
+
+def _close_up(images, points, *, rng, per_image):
+    """close_up per image (stills) or by the video's median face centre and height (one zoom for all frames)."""
+    pts = np.asarray(points, dtype=np.float64)
+    centres, heights = pts.mean(1) - PIXEL_ORIGIN, np.ptp(pts[:, :, 1], axis=1)
+    if not per_image:
+        centres[:], heights[:] = np.median(centres, 0), np.median(heights)
+    return _all_faces([close_up(im, p, centre=c, height=hgt)
+                       for im, p, c, hgt in zip(images, pts, centres, heights, strict=True)])
+
+
 def _each(transform: Callable, sized: Callable | None = None, *, random: bool = False):
     """A variant builder applying ``transform`` frame by frame; ``sized(eye_px) -> kwargs`` for transforms sized
     by the face, ``random`` for those that take the variant's ``rng``."""
@@ -394,6 +418,7 @@ VARIANTS = (
     Variant("dim_small", f"shrunk to {DIM_EYE_PX:g} px between the outer eye corners, blurred by {DIM_BLUR_EYE:g} "
             f"of that, B/G/R x {DARK_GAINS}, noise sigma {DIM_NOISE:g}",
             _each(dim_small, lambda e: {"eye_px": e}, random=True)),
+    Variant("close_up", f"zoomed until the face's points span {CLOSE_FILL:g} of the frame's height", _close_up),
     Variant("rot_sweep", f"roll {ROTATION_DEG:g} sin(2 pi t / {SWEEP_PERIOD_S:g} s) deg", _sweep, stills=False),
     Variant("shake", f"camera shake: jumps of up to {SHAKE_EYE:g} eye distances a frame", _shake, stills=False),
 ) + tuple(Variant(f"blank_{k}", f"{GAP_FRAMES} {k} frames in the middle", _gap(k), stills=False)

@@ -151,6 +151,27 @@ def test_small30_variant_puts_the_eyes_30_px_apart():
                                np.array([60.0, 65.0, 70.0]) * 30.0 / 65.0, atol=0.1)
 
 
+def test_close_up_moves_points_with_a_marker_and_fills_the_frame():
+    """close_up zooms about the face so its points span CLOSE_FILL of the frame's height, the face's centre at the
+    frame's centre; a rendered marker lands where its point is moved to. The video zooms every frame alike (by the
+    median face), stills each by its own."""
+    rng = np.random.default_rng(SEED)
+    pts = _points(rng)  # about 60 px tall, in a 160 px frame
+    out, moved = rb.close_up(_marker(pts[5], sigma=1.5), pts, centre=pts.mean(0) - PIXEL_ORIGIN,
+                             height=float(np.ptp(pts[:, 1])))
+    assert np.ptp(moved[:, 1]) == pytest.approx(rb.CLOSE_FILL * SIZE[1], rel=1e-9)
+    np.testing.assert_allclose(moved.mean(0) - PIXEL_ORIGIN, [(SIZE[0] - 1) / 2, (SIZE[1] - 1) / 2], atol=1e-9)
+    assert np.abs(_centroid(out) - moved[5]).max() < 0.05  # px
+    frames = [rng.integers(0, 256, size=(160, 200, 3), dtype=np.uint8) for _ in range(3)]
+    faces = np.stack([_points(rng) * k for k in (0.9, 1.0, 1.1)])
+    variant = next(v for v in rb.VARIANTS if v.name == "close_up")
+    _, each, _ = variant.build(frames, faces, rng=rng, per_image=True)
+    np.testing.assert_allclose(np.ptp(each[:, :, 1], axis=1), rb.CLOSE_FILL * 160, rtol=1e-9)
+    _, video, _ = variant.build(frames, faces, rng=rng, per_image=False)
+    heights = np.ptp(faces[:, :, 1], axis=1)
+    np.testing.assert_allclose(np.ptp(video[:, :, 1], axis=1), heights / np.median(heights) * 160, rtol=1e-9)
+
+
 def test_dim_small_variant_shrinks_to_45_px_never_enlarges_and_darkens():
     rng = np.random.default_rng(SEED)
     frames = [np.full((300, 400, 3), 200, np.uint8) for _ in range(2)]

@@ -223,11 +223,11 @@ def translate(image, points, *, dx: float, dy: float):
     return warp_affine(image, points, np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]]))
 
 
-def warp_affine(image, points, matrix):
-    """The image warped by the affine ``matrix`` (2, 3) (OpenCV's convention), same size, bilinear, reflected
-    border, and the points moved with it."""
+def warp_affine(image, points, matrix, *, border: int = cv2.BORDER_REFLECT_101):
+    """The image warped by the affine ``matrix`` (2, 3) (OpenCV's convention), same size, bilinear, with the
+    ``border`` mode (default reflected), and the points moved with it."""
     h, w = image.shape[:2]
-    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=border)
     return out, affine_points(points, matrix)
 
 
@@ -324,8 +324,7 @@ def close_up(image, points, *, centre, height: float, fill: float = CLOSE_FILL):
     h, w = image.shape[:2]
     s = fill * h / height
     matrix = np.array([[s, 0.0, (w - 1) / 2.0 - s * centre[0]], [0.0, s, (h - 1) / 2.0 - s * centre[1]]])
-    out = cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return out, affine_points(points, matrix)
+    return warp_affine(image, points, matrix, border=cv2.BORDER_REPLICATE)
 
 
 def _close_up(images, points, *, rng, per_image):

@@ -244,9 +244,11 @@ def test_a_hand_over_the_mouth_leaves_the_points_where_the_face_is():
 def test_a_close_up_filling_the_frame_is_found_and_tracked():
     """The sample's first 40 frames zoomed in so the face's landmarks span the frame's height (brows at the top
     edge, chin at the bottom: Haar's box would reach past both). Before the close-up search
-    (``detector.CLOSE_PAD``) no search found the face (cap12 zoomed so: 47% of its frames tracked, all of the
+    (``detector.CLOSE_PAD``) no search found the face (cap12 zoomed so: 47% of its frames tracked, most of the
     rest 'no face detected'); now every frame is tracked from the first, and the points agree with the un-zoomed
     track's moved by the zoom."""
+    import cv2
+
     from aamtrack.detector import HaarDetector
     from aamtrack.mesh.landmarks import affine_points
     from aamtrack.metrics import nme
@@ -262,8 +264,6 @@ def test_a_close_up_filling_the_frame_is_found_and_tracked():
     centre, height = np.median(pts.mean(1), 0), np.median(np.ptp(pts[:, :, 1], axis=1))
     s = 1.0 * H / height  # the landmarks span the frame's height
     M = np.array([[s, 0.0, W / 2 - s * centre[0]], [0.0, s, H / 2 - s * centre[1]]])
-    import cv2
-
     zoomed = [cv2.warpAffine(im, M, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
               for im in images]
 

@@ -62,14 +62,16 @@ def similarity_to(ref: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def descriptors(spec: DescriptorSpec, image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np.ndarray,
-                out: np.ndarray | None = None) -> np.ndarray:
+                out: np.ndarray | None = None, gain: float = 1.0) -> np.ndarray:
     """(68 * spec.size,) float32 descriptors of pts (68, 2) (frame pixels) on ``image``, the grey frame resampled
-    by ``scale``, on a patch of half side ``half`` in the face frame M (``similarity_to``)."""
+    by ``scale``, on a patch of half side ``half`` in the face frame M (``similarity_to``), read as if ``image``
+    were multiplied by ``gain`` (``descriptor_gain``: the floor divided by it, which is the same and copies
+    nothing)."""
     if out is None:
         out = np.empty((len(pts), spec.size), np.float32)
     step = 2.0 * half / (spec.side + 1)
     landmark_descriptors(image, scale, 0.5 * scale - 0.5, pts, step * M, cells=spec.cells, cell=spec.cell,
-                         bins=spec.bins, floor=spec.patch_floor, out=out)
+                         bins=spec.bins, floor=spec.patch_floor / gain, out=out)
     return out.reshape(-1)
 
 
@@ -107,6 +109,41 @@ def sharpness(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     return face_sharpness(image, scale, pts, _SHARPNESS_PAD, *_SHARPNESS_KERNELS)
 
 
+#: ``descriptor_gain``: a face whose grey levels' standard deviation on its points' box is under GAIN_TARGET_SD
+#: (helen_train's faces at the finest couple's resolution, 5th / 50th / 95th percentile: 25 / 51 / 73) is read as
+#: if brightened to it, at most GAIN_MAX times, and never so far that the image's noise (``noise_sd``) passes
+#: GAIN_NOISE_CAP grey levels (helen_train: 0.6 / 1.4 / 2.8): the gain may not make a noisy face noisier than
+#: the photos the cascade learned from.
+GAIN_TARGET_SD = 25.0
+GAIN_MAX = 4.0
+GAIN_NOISE_CAP = 3.0
+
+
+def noise_sd(median_laplacian: float) -> float:
+    """The image noise's standard deviation from the median absolute Laplacian (``face_noise_and_deviation``) of
+    Gaussian noise: the 4-neighbour Laplacian of noise of sd s has sd s sqrt(20), and |N(0, 1)|'s median is
+    0.6745."""
+    return median_laplacian / (0.6745 * math.sqrt(20.0))
+
+
+def descriptor_gain(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
+    """The gain (>= 1) the landmark cascade reads a low-contrast face's descriptors with (``LandmarkCascade.run``,
+    ``GAIN_TARGET_SD``, ``GAIN_MAX``, ``GAIN_NOISE_CAP``), on the box of the points pts (68, 2) (frame pixels)
+    in ``image`` (the grey frame resampled by ``scale``); 1 for a box under 8 pixels a side or off the image.
+
+    The descriptors are normalised with a floor (``DescriptorSpec.floor`` grey levels of gradient per sample),
+    so that flat patches stay near zero; on a dark or low-contrast face (a stage, an evening webcam) most of the
+    face's gradients fall near that floor, every descriptor shrinks, and the cascade's regressors, learned on
+    photos of ordinary contrast, move the points by less and by their biases: the jaw, whose edges are the
+    weakest, drew up (cap12 under the robustness suite's dark_cast, jaw points' mean offset 0.022 eye distances
+    upwards against 0.006 clean). A gain leaves a clear face's descriptors as they were (the floor is a small part
+    of their norm) and a noisy face's too (its noise, not the floor, is what the floor was for)."""
+    med, sd = face_noise_and_deviation(image, scale, pts)
+    if sd <= 0.0:
+        return 1.0
+    return max(1.0, min(GAIN_MAX, GAIN_TARGET_SD / sd, GAIN_NOISE_CAP / max(noise_sd(med), 1e-6)))
+
+
 def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     """The face's contrast over the image's noise, on the box of the points pts (68, 2) (frame pixels) in ``image``
     (the grey frame resampled by ``scale``, as ``sharpness`` reads it): the box's standard deviation over
@@ -119,7 +156,7 @@ def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     med, sd = face_noise_and_deviation(image, scale, pts)
     if sd < 0:
         return 0.0
-    return sd / (med / (0.6745 * math.sqrt(20.0)) + 0.5)
+    return sd / (noise_sd(med) + 0.5)
 
 
 def quantise_rows(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -234,9 +271,10 @@ class LandmarkCascade:
         return self.run(image, scale, pts, first)[0]
 
     def run(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0,
-            repeats: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            repeats: int | None = None, gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``apply`` in one compiled call (``kernels.landmark_cascade``; ``run_slow`` is the same in numpy steps),
-        the last stage ``repeats`` more times (default: the cascade's own ``repeats``).
+        the last stage ``repeats`` more times (default: the cascade's own ``repeats``), the descriptors read as if
+        the image were multiplied by ``gain`` (``descriptor_gain``).
         Returns (points (68, 2), z (68 d,) float32, prior (68, 2)): z the last stage's projected descriptors, read
         at the points just before its update (within about 0.01 eye distances of the final ones), what the
         landmark validator weighs (``model.Validator``): what the face looks like around each point, at no extra
@@ -249,7 +287,7 @@ class LandmarkCascade:
         z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
                              self.basis_mean[k], self.basis[k], Q[k], s[k], Ut[k], self.biases[k],
                              self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
-                             cell=sp.cell, bins=sp.bins, floor=sp.patch_floor,
+                             cell=sp.cell, bins=sp.bins, floor=sp.patch_floor / gain,
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
                              prior=prior, repeats=self.repeats if repeats is None else repeats)
         return x, z.reshape(-1), prior
@@ -258,7 +296,8 @@ class LandmarkCascade:
         """``apply`` stage by stage in numpy (what training does; the compiled ``apply`` is tested against it)."""
         return self.run_slow(image, scale, pts)[0]
 
-    def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray,
+                 gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``run`` (all stages, the last one ``repeats`` more times) stage by stage in numpy (the regressors of
         rank ``rank``, unquantised)."""
         x = np.array(pts, dtype=np.float64)
@@ -269,7 +308,7 @@ class LandmarkCascade:
         for k in [*range(n), *[n - 1] * (self.repeats if n else 0)]:
             half = self.halves[k]
             M, _ = similarity_to(self.ref, x)
-            z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf), self.basis_mean[k],
+            z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf, gain), self.basis_mean[k],
                                     self.basis[k])
             ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
             prior += ds

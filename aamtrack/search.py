@@ -16,6 +16,7 @@ import numpy as np
 
 from .imaging import Levels, level_factor, level_shift
 from .kernels import cascade, project, residual, search
+from .landmark_cascade import descriptor_gain
 from .mesh.shape_model import N_POSE
 from .model import Model
 from .result import FitResult
@@ -28,10 +29,13 @@ N_STEPS = 4  # Jacobian search: step sizes tried per iteration, 1, 1/2, 1/4, 1/8
 
 class Searcher:
     """A model's arrays in the layout the kernels take, and scratch buffers allocated once (so one Searcher
-    serves one thread at a time). Holds no state between calls."""
+    serves one thread at a time). Holds no state between calls. ``contrast_gain``: the landmark cascade reads a
+    low-contrast face's descriptors brightened (``landmark_cascade.descriptor_gain``; False: as they are, as
+    before 2026-11-29)."""
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model, *, contrast_gain: bool = True):
         self.model = model
+        self.contrast_gain = contrast_gain
         sm = model.shape
         self.width = sm.frontal_width()
         self.shape3d = np.ascontiguousarray(sm.mean)
@@ -153,7 +157,8 @@ class Searcher:
         soft = lc is self.model.soft_cascade
         if by_dim and dim:
             lc = self.model.dim_cascade
-        pts, z, prior = lc.run(img, r, res.landmarks, first, repeats)
+        gain = descriptor_gain(img, r, res.landmarks) if self.contrast_gain else 1.0
+        pts, z, prior = lc.run(img, r, res.landmarks, first, repeats, gain)
         lv = self.model.validator_for(img, r, pts, soft=soft)
         conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior,

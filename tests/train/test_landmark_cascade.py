@@ -77,6 +77,15 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
             y, z_last, _ = last.run(g, 1.0, y, first=last.n_stages - 1)
         assert np.abs(x2 - y).max() < 1e-9 and np.array_equal(z2, z_last)
         assert np.abs(x2 - cascade.apply(g, 1.0, s)).max() > 1e-3  # and the repeats did move the points
+        # a gain reads the descriptors as the image multiplied by it would give them (the floor divided instead);
+        # compiled and numpy alike
+        dark = 0.2 * g
+        x_gain, z_gain, _ = cascade.run(dark, 1.0, s, gain=5.0)
+        x_times, z_times, _ = cascade.run(5.0 * dark, 1.0, s)
+        assert np.abs(x_gain - x_times).max() < 1e-3 and np.abs(z_gain - z_times).max() < 1e-4  # float32 sums
+        x_slow, z_slow, _ = cascade.run_slow(dark, 1.0, s, gain=5.0)
+        assert np.abs(x_gain - x_slow).max() < 1e-3
+        assert np.abs(cascade.apply(dark, 1.0, s) - x_gain).max() > 1e-2  # px: without it the dark face moves less
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():
@@ -192,6 +201,30 @@ def test_signal_to_noise_reads_the_added_noise_and_calls_dim_noisy_faces_low():
         assert signal_to_noise(0.3 * g + 40.0 + rng.normal(0.0, 6.0, g.shape).astype(np.float32), 1.0, P) < 4.5
     assert signal_to_noise(np.full((150, 150), 90, np.float32), 1.0, truth[0]) == 0.0  # flat: no signal
     assert signal_to_noise(gray[0], 1.0, truth[0] + 1000.0) == 0.0  # off the image
+
+
+def test_descriptor_gain_lifts_dim_faces_to_the_target_but_not_noisy_ones():
+    """``descriptor_gain``: a face of contrast (the points' box's standard deviation) above ``GAIN_TARGET_SD``
+    gets 1; darkened, the target over its contrast, at most ``GAIN_MAX``; darkened with noise of 6 grey levels
+    (twice ``GAIN_NOISE_CAP``), no gain whatever its contrast, with noise of 1.5 at most the cap over it."""
+    from aamtrack.kernels import face_noise_and_deviation
+    from aamtrack.landmark_cascade import GAIN_MAX, GAIN_NOISE_CAP, GAIN_TARGET_SD, descriptor_gain
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(6, rng, size=(150, 150), scale=85.0)
+    for im, P in zip(images, truth):
+        g = im.astype(np.float32)
+        g *= np.float32(2 * GAIN_TARGET_SD / face_noise_and_deviation(g, 1.0, P)[1])  # contrast twice the target
+        assert descriptor_gain(g, 1.0, P) == 1.0
+        for k in (0.3, 0.8):  # contrast 0.6 and 1.6 of the target
+            assert abs(descriptor_gain(k * g, 1.0, P) - max(1.0, 1.0 / (2 * k))) < 1e-3
+        assert descriptor_gain(0.05 * g, 1.0, P) == GAIN_MAX  # 0.1 of the target: capped
+        noisy = 0.2 * g + rng.normal(0.0, 2 * GAIN_NOISE_CAP, g.shape).astype(np.float32)
+        assert descriptor_gain(noisy, 1.0, P) == 1.0
+        some = 0.2 * g + rng.normal(0.0, GAIN_NOISE_CAP / 2, g.shape).astype(np.float32)
+        assert 1.0 < descriptor_gain(some, 1.0, P) <= 2.0 * 1.2  # the cap over the noise (to 20%), not 2.5
+    assert descriptor_gain(np.full((150, 150), 90, np.float32), 1.0, truth[0]) == 1.0  # flat
+    assert descriptor_gain(images[0].astype(np.float32), 1.0, truth[0] + 1000.0) == 1.0  # off the image
 
 
 def test_signal_to_noise_is_its_definition_on_odd_and_even_boxes():

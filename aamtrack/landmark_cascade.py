@@ -137,7 +137,10 @@ def descriptor_gain(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     photos of ordinary contrast, move the points by less and by their biases: the jaw, whose edges are the
     weakest, drew up (cap12 under the robustness suite's dark_cast, jaw points' mean offset 0.022 eye distances
     upwards against 0.006 clean). A gain leaves a clear face's descriptors as they were (the floor is a small part
-    of their norm) and a noisy face's too (its noise, not the floor, is what the floor was for)."""
+    of their norm) and a noisy face's too (its noise, not the floor, is what the floor was for).
+    Run time only, so far: training reads the descriptors as they are (the shipped models were learned so; most
+    training photos are above the target, but the validators' dark and flat copies are not: reading them with the
+    gain at the next retraining is to do, and changes the synthetic models the tests train)."""
     med, sd = face_noise_and_deviation(image, scale, pts)
     if sd <= 0.0:
         return 1.0

@@ -134,7 +134,8 @@ class Searcher:
         read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
         search passes the one it used, whose level is made already); the fit itself when the model has none. A
         soft face takes the model's soft cascade (``Model.cascade_for``).
-        The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
+        A dark or flat face's descriptors are read brightened (``landmark_cascade.descriptor_gain``, unless
+        ``contrast_gain`` is off). The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
         statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one (for a dim,
         noisy face, its validator for those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
         ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames,

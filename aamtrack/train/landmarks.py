@@ -21,8 +21,8 @@ import logging
 
 import numpy as np
 
-from ..landmark_cascade import (DescriptorSpec, LandmarkCascade, descriptor_gain, descriptors, project_descriptors,
-                                shape_features, similarity_to)
+from ..landmark_cascade import (DescriptorSpec, LandmarkCascade, descriptors, project_descriptors, shape_features,
+                                similarity_to)
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
 from .cascade import ridge_fit
 from .shape2d import procrustes_mean
@@ -106,9 +106,6 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
     per = spec.size
     d = min(n_components, per)
     Rs, Ss, bs, means, bases, record = [], [], [], [], [], []
-    # each start's descriptors read with the gain the tracker reads them with (``descriptor_gain``, held from the
-    # cascade's start through its stages, as ``LandmarkCascade.run`` holds it)
-    gains = np.array([descriptor_gain(images[i], scales[i], x) for i, x in zip(owner, X)])
     for k in progress(range(len(halves)), desc="landmark cascade", unit="stage"):
         F = np.empty((len(X), 68 * spec.size), np.float32)
         Y = np.empty((len(X), 136))
@@ -119,7 +116,7 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         for m in range(len(X)):
             i = owner[m]
             M, _ = similarity_to(ref, X[m])
-            F[m] = descriptors(spec, images[i], scales[i], X[m], halves[k], M, buf, gains[m])
+            F[m] = descriptors(spec, images[i], scales[i], X[m], halves[k], M, buf)
             Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
             frames[m] = M
             if with_shape:

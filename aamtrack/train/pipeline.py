@@ -16,7 +16,7 @@ import numpy as np
 from ..detector import guess_points
 from ..imaging import Features, Levels, level_factor, level_shift, to_gray32
 from ..kernels import accumulate_gradient, project
-from ..landmark_cascade import LandmarkCascade, descriptor_gain, sharpness, signal_to_noise
+from ..landmark_cascade import LandmarkCascade, sharpness, signal_to_noise
 from ..mesh.candide import Candide
 from ..mesh.candide_model import candide_shape_model
 from ..mesh.corrective import with_corrective_units
@@ -627,7 +627,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         cascade = model.cascade_for(img, r, res.landmarks) if dim_below > 0 or soft else lc
         # as ``refine_landmarks`` runs it: a face dim at its start without the last stage's repeats
         dim = dim_below > 0 and signal_to_noise(img, r, res.landmarks) < dim_below
-        pts, z, _ = cascade.run(img, r, res.landmarks, 0, 0 if dim else None, descriptor_gain(img, r, res.landmarks))
+        pts, z, _ = cascade.run(img, r, res.landmarks, 0, 0 if dim else None)
         if dim_below > 0 and truth is not None and signal_to_noise(img, r, pts) >= 2 * dim_below:
             return
         if soft and truth is not None and cascade is lc:

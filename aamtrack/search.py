@@ -135,8 +135,9 @@ class Searcher:
         search passes the one it used, whose level is made already); the fit itself when the model has none. A
         soft face takes the model's soft cascade (``Model.cascade_for``).
         A dark or flat face's descriptors are read brightened (``landmark_cascade.descriptor_gain``, unless
-        ``contrast_gain`` is off). The pose and mesh stay the search's; the confidence becomes the landmark validator's (the fit
-        statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the model has one (for a dim,
+        ``contrast_gain`` is off). The pose and mesh stay the search's; the confidence becomes the landmark
+        validator's (the fit statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the
+        model has one (for a dim,
         noisy face, its validator for those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
         ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames,
         ``TrackerConfig.landmark_stages_tracked``). The last stage's ``LandmarkCascade.repeats`` are left out for a

@@ -13,6 +13,19 @@ from aamtrack.track.tracker import Tracker
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "cap12_first12s.mp4"
 
 
+def _sample_images(n: int) -> list:
+    """The sample clip's first n frames (BGR images)."""
+    with open_frames(SAMPLE) as frames:
+        return [f.image for f, _ in zip(frames, range(n), strict=False)]
+
+
+def _track(tracker: Tracker, images) -> list:
+    """The tracker's results for the images as a 25 fps video."""
+    from aamtrack.track.replay import ReplayFrame
+
+    return list(tracker.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
+
+
 @pytest.mark.parametrize("kind", ["3d", "2d"])
 def test_shipped_model_tracks_the_sample(kind):
     model = load_model(default_model_path(kind))
@@ -92,8 +105,7 @@ def test_pose_of_an_unchanging_face_stays_put():
 
     model = load_model(default_model_path("3d"))
     held = Tracker(model).config.sigma_frames
-    with open_frames(SAMPLE) as frames:
-        images = [f.image for f, _ in zip(frames, range(201), strict=False)]
+    images = _sample_images(201)
     for k in (0, 150, 200):
         results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, images[k]) for i in range(held + 10)))
         assert all(r.success for r in results)
@@ -215,13 +227,11 @@ def test_a_hand_over_the_mouth_leaves_the_points_where_the_face_is():
     from occlusion import SKIN, occluder_mask
 
     from aamtrack.metrics import PIXEL_ORIGIN, nme
-    from aamtrack.track.replay import ReplayFrame
 
     model = load_model(default_model_path("3d"))
-    with open_frames(SAMPLE) as frames:
-        images = [f.image for f in frames][:230]
+    images = _sample_images(230)
     on = Tracker(model)
-    clean = list(on.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
+    clean = _track(on, images)
     assert all(r.success for r in clean)  # the premise: the clean clip is tracked throughout
     covered = range(100, 200)
     occluded = [im.copy() for im in images]
@@ -230,7 +240,7 @@ def test_a_hand_over_the_mouth_leaves_the_points_where_the_face_is():
     wrong = {}
     off = Tracker(model, config=replace(on.config, max_shape_score=0.0, shape_recheck_above=0.0))
     for name, tracker in (("on", on), ("off", off)):
-        results = list(tracker.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(occluded)))
+        results = _track(tracker, occluded)
         wrong[name] = sum(r.success and float(nme(r.landmarks, clean[i].landmarks)) > 0.10
                           for i, r in zip(covered, results[100:200], strict=True))
         if name == "on":
@@ -252,12 +262,10 @@ def test_a_close_up_filling_the_frame_is_found_and_tracked():
     from aamtrack.detector import HaarDetector
     from aamtrack.mesh.landmarks import affine_points
     from aamtrack.metrics import nme
-    from aamtrack.track.replay import ReplayFrame
 
     model = load_model(default_model_path("3d"))
-    with open_frames(SAMPLE) as frames:
-        images = [f.image for f, _ in zip(frames, range(40), strict=False)]
-    plain = list(Tracker(model).track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
+    images = _sample_images(40)
+    plain = _track(Tracker(model), images)
     assert all(r.success for r in plain)
     pts = np.array([r.landmarks for r in plain])
     H, W = images[0].shape[:2]
@@ -273,7 +281,7 @@ def test_a_close_up_filling_the_frame_is_found_and_tracked():
 
     grey = cv2.cvtColor(zoomed[0], cv2.COLOR_BGR2GRAY)
     assert NoCloseUp().find(grey) is None  # the premise: none of the other searches finds this face
-    results = list(Tracker(model).track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(zoomed)))
+    results = _track(Tracker(model), zoomed)
     assert [r.status for r in results] == ["detected"] + ["tracked"] * (len(zoomed) - 1)
     errors = [float(nme(r.landmarks, affine_points(p, M))) for r, p in zip(results, pts)]  # (M: OpenCV's pixels)
     print("close-up against the un-zoomed track, NME mean / max:", np.mean(errors), np.max(errors))
@@ -287,18 +295,16 @@ def test_a_dark_face_is_fitted_where_the_bright_one_is(kind):
     (``landmark_cascade.descriptor_gain``), and drift without it (3D measured 0.0018 against 0.0129 mean NME:
     the jaw drew up)."""
     from aamtrack.metrics import nme
-    from aamtrack.track.replay import ReplayFrame
 
     model = load_model(default_model_path(kind))
-    with open_frames(SAMPLE) as frames:
-        images = [f.image for f, _ in zip(frames, range(40), strict=False)]
-    bright = [r.landmarks for r in Tracker(model).track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images))]
+    images = _sample_images(40)
+    bright = [r.landmarks for r in _track(Tracker(model), images)]
     dark = [np.round(0.3 * im).astype(np.uint8) for im in images]
     errors = {}
     for gain in (True, False):
         tracker = Tracker(model)
         tracker.searcher.contrast_gain = gain
-        results = list(tracker.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(dark)))
+        results = _track(tracker, dark)
         assert all(r.success for r in results)
         errors[gain] = np.mean([float(nme(r.landmarks, p)) for r, p in zip(results, bright)])
     print(f"{kind} dark frames against the bright track, mean NME: {errors[True]:.4f} with the gain, "

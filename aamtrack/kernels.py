@@ -205,6 +205,13 @@ def face_sharpness(image, scale: float, pts, pad: int, k1, k2) -> float:
                           _in(k1, F32, 1, "k1"), _in(k2, F32, 1, "k2"))
 
 
+def face_fine_noise(image, scale: float, pts) -> float:
+    """The median |Immerkaer mask response| of the face's box's inner pixels, or -1 for a box too small or off the
+    image (``aamtrack._kernels.face_stats._fine_noise``): image (H, W) float32, the points pts (L, 2) in frame
+    pixels."""
+    return float(_fs._fine_noise(_in(image, F32, 2, "image"), float(scale), _in(pts, F64, 2, "pts")))
+
+
 def face_noise_and_deviation(image, scale: float, pts) -> tuple[float, float]:
     """(median |Laplacian| of the face's box's inner pixels, the box's standard deviation), or (0, -1) for a box
     too small or off the image (``aamtrack._kernels.face_stats._noise_and_deviation``): image (H, W) float32,

@@ -26,7 +26,8 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from .kernels import face_noise_and_deviation, face_sharpness, landmark_cascade, landmark_descriptors
+from .kernels import (face_fine_noise, face_noise_and_deviation, face_sharpness, landmark_cascade,
+                      landmark_descriptors)
 from .mesh.landmarks import similarity_fit
 
 
@@ -141,10 +142,59 @@ def descriptor_gain(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
     Run time only, so far: training reads the descriptors as they are (the shipped models were learned so; most
     training photos are above the target, but the validators' dark and flat copies are not: reading them with the
     gain at the next retraining is to do, and changes the synthetic models the tests train)."""
-    med, sd = face_noise_and_deviation(image, scale, pts)
+    return _gain(*face_noise_and_deviation(image, scale, pts))
+
+
+def _gain(median_laplacian: float, sd: float) -> float:
+    """``descriptor_gain`` from the box's ``face_noise_and_deviation``."""
     if sd <= 0.0:
         return 1.0
-    return max(1.0, min(GAIN_MAX, GAIN_TARGET_SD / sd, GAIN_NOISE_CAP / max(noise_sd(med), 1e-6)))
+    return max(1.0, min(GAIN_MAX, GAIN_TARGET_SD / sd, GAIN_NOISE_CAP / max(noise_sd(median_laplacian), 1e-6)))
+
+
+def fine_noise_sd(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
+    """The image noise's standard deviation on the box of the points pts (68, 2) (frame pixels) in ``image`` (the
+    grey frame resampled by ``scale``), from the median absolute response to Immerkaer's mask (J. Immerkaer, "Fast
+    noise variance estimation", CVIU 1996: the difference of two Laplacians, blind to the plane and much of the
+    curvature a Laplacian reads; on noise of sd s its response has sd 6 s) (``kernels.face_fine_noise``, one
+    compiled call); -1 for a box under 8 pixels a side or off the image. Where ``noise_sd`` reads a small face's
+    own detail as noise, this reads less of it: measured on the faces the tracker fitted (/tmp harness,
+    2026-11-30, median over frames, the added noise's grey sd in brackets), cap12 clean 0.49 (Laplacian 0.99),
+    ``benchmarks/hard_clips.py``'s hard7 (16 px between the eyes, 2.0) 3.5 (5.3), hard5 (22 px, 2.7) 2.7 (3.3),
+    the robustness suite's noise (16.7) 16.6 (16.6) and dim_small (5.3) 5.4 (5.3); helen_train's faces at the
+    cascade's resolution, 5th / 50th / 95th percentile 0.24 / 0.59 / 1.55 (Laplacian 0.72 / 1.35 / 2.85).
+    What decides whether the cascade reads a face smoothed (``descriptor_view``); ``signal_to_noise`` keeps the
+    Laplacian's estimate, on which the models' thresholds for dim faces were learned."""
+    med = face_fine_noise(image, scale, pts)
+    return -1.0 if med < 0 else med / (0.6745 * 6.0)
+
+
+def descriptor_view(image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[np.ndarray, float]:
+    """(the image, gain) the landmark cascade reads the face at the points pts (68, 2) (frame pixels) on, in
+    ``image`` (the grey frame resampled by ``scale``): ``image`` and ``descriptor_gain`` for a face whose noise
+    (``fine_noise_sd``) is at most ``GAIN_NOISE_CAP`` grey levels; for a noisier one, ``image`` smoothed by the
+    Gaussian that takes white noise of that sd down to the cap (sigma = noise / (2 sqrt(pi) cap) pixels: Gaussian
+    smoothing divides white noise's sd by 2 sqrt(pi) sigma), read with the gain its smoothed contrast asks for
+    (``GAIN_TARGET_SD`` over the smoothed box's sd, at most ``GAIN_MAX``; what noise is left is low-frequency,
+    which the descriptors' gradients barely read). Without it a noisy face's descriptors read the noise's
+    gradients: on the robustness suite's noise variant (sensor noise of 25 grey levels on each channel) the
+    cascade's points were 0.0250 eye distances off against 0.0215 with it (``benchmarks/README.md``,
+    "robustness.py"). For the cascade only: the landmark validators, learned on faces as they are, judge the
+    points from the unsmoothed image's descriptors (``LandmarkCascade.read``, in ``Searcher.refine_landmarks``):
+    fed the smoothed ones, they accepted fits of smoothed noise in noisy stills (two at NME 1.1-1.2). A smoothed
+    image is a new array (the level itself is left as it is). The noise decides, never the contrast alone: a dim
+    face without noise keeps its detail and gets the gain. Cost: a face whose Laplacian estimate (``noise_sd``,
+    which reads at least as much as the fine one but for chance: white noise reads alike in both, detail more in
+    the Laplacian) is under the cap pays what ``descriptor_gain`` alone costs; a noisier one the fine estimate
+    too (46 us) and, if smoothed, its level's blur (about 80 us for a 640 x 480 frame's face; /tmp harness,
+    2026-11-30, medians on the sample clip)."""
+    med, sd = face_noise_and_deviation(image, scale, pts)
+    if noise_sd(med) <= GAIN_NOISE_CAP or (noise := fine_noise_sd(image, scale, pts)) <= GAIN_NOISE_CAP:
+        return image, _gain(med, sd)
+    sigma = noise / (2.0 * math.sqrt(math.pi) * GAIN_NOISE_CAP)
+    smoothed = cv2.GaussianBlur(image, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+    sd = face_noise_and_deviation(smoothed, scale, pts)[1]
+    return smoothed, max(1.0, min(GAIN_MAX, GAIN_TARGET_SD / max(sd, 1e-6)))
 
 
 def signal_to_noise(image: np.ndarray, scale: float, pts: np.ndarray) -> float:
@@ -294,6 +344,15 @@ class LandmarkCascade:
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
                              prior=prior, repeats=self.repeats if repeats is None else repeats)
         return x, z.reshape(-1), prior
+
+    def read(self, image: np.ndarray, scale: float, pts: np.ndarray, gain: float = 1.0) -> np.ndarray:
+        """(68 d,) float32: the last stage's projected descriptors at the points pts (68, 2) (frame pixels) on
+        ``image`` (the grey frame resampled by ``scale``), read as if it were multiplied by ``gain``: ``run``'s z
+        read at given points."""
+        k = self.n_stages - 1
+        M, _ = similarity_to(self.ref, pts)
+        return project_descriptors(descriptors(self.spec, image, scale, pts, self.halves[k], M, gain=gain),
+                                   self.basis_mean[k], self.basis[k]).reshape(-1)
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
         """``apply`` stage by stage in numpy (what training does; the compiled ``apply`` is tested against it)."""

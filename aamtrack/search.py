@@ -16,7 +16,7 @@ import numpy as np
 
 from .imaging import Levels, level_factor, level_shift
 from .kernels import cascade, project, residual, search
-from .landmark_cascade import descriptor_gain
+from .landmark_cascade import descriptor_view
 from .mesh.shape_model import N_POSE
 from .model import Model
 from .result import FitResult
@@ -29,13 +29,13 @@ N_STEPS = 4  # Jacobian search: step sizes tried per iteration, 1, 1/2, 1/4, 1/8
 
 class Searcher:
     """A model's arrays in the layout the kernels take, and scratch buffers allocated once (so one Searcher
-    serves one thread at a time). Holds no state between calls. ``contrast_gain``: the landmark cascade reads a
-    low-contrast face's descriptors brightened (``landmark_cascade.descriptor_gain``; False: as they are, as
-    before 2026-11-29)."""
+    serves one thread at a time). Holds no state between calls. ``adaptive_view``: the landmark cascade reads a
+    low-contrast face's descriptors brightened and a noisy face's smoothed (``landmark_cascade.descriptor_view``;
+    False: as they are, as before 2026-11-29)."""
 
-    def __init__(self, model: Model, *, contrast_gain: bool = True):
+    def __init__(self, model: Model, *, adaptive_view: bool = True):
         self.model = model
-        self.contrast_gain = contrast_gain
+        self.adaptive_view = adaptive_view
         sm = model.shape
         self.width = sm.frontal_width()
         self.shape3d = np.ascontiguousarray(sm.mean)
@@ -134,11 +134,11 @@ class Searcher:
         read on the grey level resampled by r (default: the finest couple's factor for the fit's face size; the
         search passes the one it used, whose level is made already); the fit itself when the model has none. A
         soft face takes the model's soft cascade (``Model.cascade_for``).
-        A dark or flat face's descriptors are read brightened (``landmark_cascade.descriptor_gain``, unless
-        ``contrast_gain`` is off). The pose and mesh stay the search's; the confidence becomes the landmark
-        validator's (the fit statistics and the cascade's last descriptors, ``LandmarkCascade.run``) when the
-        model has one (for a dim,
-        noisy face, its validator for those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
+        A dark or flat face's descriptors are read brightened, a noisy face's smoothed
+        (``landmark_cascade.descriptor_view``, unless ``adaptive_view`` is off). The pose and mesh stay the
+        search's; the confidence becomes the landmark validator's (the fit statistics and the cascade's last
+        descriptors, ``LandmarkCascade.run``) when the model has one (for a dim, noisy face, its validator for
+        those; for the soft cascade's fit, the soft one's: ``Model.validator_for``).
         ``last`` > 0 runs only the cascade's last ``last`` stages (the tracker's tracked frames,
         ``TrackerConfig.landmark_stages_tracked``). The last stage's ``LandmarkCascade.repeats`` are left out for a
         face that is dim and noisy at the search's points (``Model.dim``), or, given ``dim``, as it says (a tracked
@@ -159,8 +159,10 @@ class Searcher:
         soft = lc is self.model.soft_cascade
         if by_dim and dim:
             lc = self.model.dim_cascade
-        gain = descriptor_gain(img, r, res.landmarks) if self.contrast_gain else 1.0
-        pts, z, prior = lc.run(img, r, res.landmarks, first, repeats, gain)
+        view, gain = descriptor_view(img, r, res.landmarks) if self.adaptive_view else (img, 1.0)
+        pts, z, prior = lc.run(view, r, res.landmarks, first, repeats, gain)
+        if view is not img:  # the validators learned faces as they are (``descriptor_view``); a face noisy enough
+            z = lc.read(img, r, pts)  # to be smoothed is past the gain's noise cap: its gain as it is is 1
         lv = self.model.validator_for(img, r, pts, soft=soft)
         conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior,

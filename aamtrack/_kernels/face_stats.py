@@ -1,6 +1,8 @@
 """Compiled statistics of the face's box in a grey level: how soft it looks (``_sharpness``) and what its contrast
 over the image's noise is read from (``_noise_and_deviation``: the median absolute Laplacian and the
-standard deviation), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``).
+standard deviation), which pick the landmark cascade and validator for every fit (``aamtrack.landmark_cascade``),
+and a noise estimate that reads less of a small face's detail (``_fine_noise``: Immerkaer's mask), which decides
+whether the cascade reads a noisy face smoothed.
 In numpy and OpenCV calls each took 0.09-0.15 ms of a tracked frame's ~2.5 ms, most of it per-call overhead on
 boxes of a few thousand pixels; here each is one compiled call.
 
@@ -297,3 +299,31 @@ def _noise_and_deviation(img, scale, pts):
     mean = s.sum() / cnt
     ss = ss.sum()
     return _middle(lap), math.sqrt(max(ss / cnt - mean * mean, 0.0))
+
+
+@numba.njit(**NJIT)
+def _fine_noise(img, scale, pts):
+    """The median of |Immerkaer's mask response| over the face's box's inner pixels (no pad), float32: the mask
+    [[1, -2, 1], [-2, 4, -2], [1, -2, 1]] (the 4-neighbour Laplacian's difference with the diagonal one), formed
+    as (4 e - 2 (b + d + f + h)) + (a + c + g + i) for the 3 x 3 neighbourhood a..i, the median as np.median takes
+    it (``_middle``). -1 for a box under 8 pixels a side or off the image (``landmark_cascade.fine_noise_sd``)."""
+    H, W = img.shape
+    box = np.empty(4, np.int64)
+    if not _face_box(H, W, scale, pts, 0, 8, box):
+        return np.float32(-1.0)
+    x0, y0, x1, y1 = box[0], box[1], box[2], box[3]
+    h = y1 - y0
+    w = x1 - x0
+    out = np.empty((h - 2) * (w - 2), np.float32)
+    two = np.float32(2.0)
+    four = np.float32(4.0)
+    for y in range(1, h - 1):
+        up = img[y0 + y - 1, x0:x1]
+        mid = img[y0 + y, x0:x1]
+        down = img[y0 + y + 1, x0:x1]
+        o = out[(y - 1) * (w - 2):y * (w - 2)]
+        for x in range(1, w - 1):
+            edges = (up[x] + down[x]) + (mid[x - 1] + mid[x + 1])
+            corners = (up[x - 1] + up[x + 1]) + (down[x - 1] + down[x + 1])
+            o[x - 1] = abs((four * mid[x] - two * edges) + corners)
+    return _middle(out)

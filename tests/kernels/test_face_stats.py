@@ -58,6 +58,19 @@ def signal_to_noise_slow(image, scale, pts):
     return float(c.astype(np.float64).std()) / (noise + 0.5)
 
 
+def fine_noise_slow(image, scale, pts):
+    box = _box(image.shape, scale, pts, 0, 8)
+    if box is None:
+        return -1.0
+    x0, y0, x1, y1 = box
+    c = np.asarray(image[y0:y1, x0:x1], np.float32)
+    e, up, down, left, right = c[1:-1, 1:-1], c[:-2, 1:-1], c[2:, 1:-1], c[1:-1, :-2], c[1:-1, 2:]
+    edges = (up + down) + (left + right)
+    corners = (c[:-2, :-2] + c[:-2, 2:]) + (c[2:, :-2] + c[2:, 2:])
+    resp = (np.float32(4) * e - np.float32(2) * edges) + corners  # the mask [[1, -2, 1], [-2, 4, -2], [1, -2, 1]]
+    return float(np.median(np.abs(resp)))
+
+
 def _cases(n=60):
     """Textured images with a face-sized cloud of points inside, across sizes, scales, odd and even boxes, noise
     and quantised grey levels."""
@@ -93,13 +106,28 @@ def test_signal_to_noise_matches_its_slow_reference():
     assert n > 30
 
 
+def test_fine_noise_matches_its_slow_reference():
+    from aamtrack.kernels import face_fine_noise
+
+    n = 0
+    for img, scale, pts in _cases():
+        want = fine_noise_slow(img, scale, pts)
+        got = face_fine_noise(img, scale, pts)
+        assert abs(got - want) <= 1e-6 * max(1.0, abs(want))  # the same float32 sums and median
+        n += want >= 0
+    assert n > 30
+
+
 def test_face_stats_off_the_image_or_not_finite_give_zero():
+    from aamtrack.kernels import face_fine_noise
+
     img = np.full((100, 100), 100.0, np.float32)
     pts = np.full((68, 2), 50.0) + np.random.default_rng(SEED).normal(0, 10, (68, 2))
     assert sharpness(img, 1.0, pts) == 0.0  # flat box
     for bad in (pts + 1000.0, np.where(np.arange(68)[:, None] == 3, np.nan, pts)):
         assert sharpness(img, 1.0, bad) == 0.0
         assert signal_to_noise(img, 1.0, bad) == 0.0
+        assert face_fine_noise(img, 1.0, bad) == -1.0
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 47, 48, 49, 1000, 17028, 17029])

@@ -76,6 +76,11 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
         for _ in range(2):
             y, z_last, _ = last.run(g, 1.0, y, first=last.n_stages - 1)
         assert np.abs(x2 - y).max() < 1e-9 and np.array_equal(z2, z_last)
+        # ``read``: the last stage's descriptors at given points, as the last stage run from them reads them
+        # (compiled against numpy: float32 sums in another order); with a gain as the image multiplied by it
+        _, z_from, _ = last.run(g, 1.0, y, first=last.n_stages - 1)
+        assert np.abs(last.read(g, 1.0, y) - z_from).max() < 5e-4 * max(1.0, np.abs(z_from).max())
+        assert np.abs(last.read(0.2 * g, 1.0, y, gain=5.0) - last.read(g, 1.0, y)).max() < 1e-3
         assert np.abs(x2 - cascade.apply(g, 1.0, s)).max() > 1e-3  # and the repeats did move the points
         # a gain reads the descriptors as the image multiplied by it would give them (the floor divided instead);
         # compiled and numpy alike
@@ -225,6 +230,57 @@ def test_descriptor_gain_lifts_dim_faces_to_the_target_but_not_noisy_ones():
         assert 1.0 < descriptor_gain(some, 1.0, P) <= 2.0 * 1.2  # the cap over the noise (to 20%), not 2.5
     assert descriptor_gain(np.full((150, 150), 90, np.float32), 1.0, truth[0]) == 1.0  # flat
     assert descriptor_gain(images[0].astype(np.float32), 1.0, truth[0] + 1000.0) == 1.0  # off the image
+
+
+def test_fine_noise_reads_the_noise_and_less_of_a_small_faces_detail_than_the_laplacian():
+    """``fine_noise_sd``: white noise of sd 2, 5 and 12 on smooth faces read to within 10%; a small face without
+    added noise (the face drawn 25 px wide, its detail at the pixel's scale) read at under 0.75 of what the
+    Laplacian's estimate (``noise_sd``) reads (measured 0.60-0.66; hard7 in ``benchmarks/hard_clips.py`` 0.65)."""
+    from aamtrack.kernels import face_noise_and_deviation
+    from aamtrack.landmark_cascade import fine_noise_sd, noise_sd
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(4, rng, size=(150, 150), scale=85.0)
+    for im, P in zip(images, truth):
+        smooth = cv2.GaussianBlur(im.astype(np.float32), (0, 0), 2.0)
+        for s in (2.0, 5.0, 12.0):
+            noisy = smooth + rng.normal(0.0, s, smooth.shape).astype(np.float32)
+            assert abs(fine_noise_sd(noisy, 1.0, P) - s) < 0.1 * s
+    small, small_truth = random_faces(4, rng, size=(60, 60), scale=25.0)
+    for im, P in zip(small, small_truth):
+        g = im.astype(np.float32)
+        fine = fine_noise_sd(g, 1.0, P)
+        lap = noise_sd(face_noise_and_deviation(g, 1.0, P)[0])
+        assert fine < 0.75 * lap, (fine, lap)
+    assert fine_noise_sd(images[0].astype(np.float32), 1.0, truth[0] + 1000.0) == -1.0  # off the image
+
+
+def test_descriptor_view_smooths_a_noisy_face_down_to_the_cap_and_leaves_a_clear_one():
+    """``descriptor_view``: a clear face is read as it is, with ``descriptor_gain``; the same face with noise of
+    4x ``GAIN_NOISE_CAP`` is read from a smoothed copy (the level itself untouched) whose noise is near the cap
+    (the noise alone, smoothed so, has an sd within 30% of the cap: the Gaussian's rule is for a continuous
+    grid) and whose descriptors lie nearer the clear face's than the noisy ones do."""
+    from aamtrack.landmark_cascade import GAIN_NOISE_CAP, descriptor_gain, descriptor_view, descriptors
+
+    rng = np.random.default_rng(SEED)
+    images, truth = random_faces(4, rng, size=(150, 150), scale=85.0)
+    spec = DescriptorSpec()
+    for im, P in zip(images, truth):
+        g = cv2.GaussianBlur(im.astype(np.float32), (0, 0), 1.5)
+        view, gain = descriptor_view(g, 1.0, P)
+        assert view is g and gain == descriptor_gain(g, 1.0, P)
+        noise = rng.normal(0.0, 4 * GAIN_NOISE_CAP, g.shape).astype(np.float32)
+        noisy = g + noise
+        before = noisy.copy()
+        view, gain = descriptor_view(noisy, 1.0, P)
+        assert view is not noisy and np.array_equal(noisy, before)
+        flat_view, _ = descriptor_view(np.float32(128.0) + noise, 1.0, P)
+        assert abs(float(flat_view[10:-10, 10:-10].std()) - GAIN_NOISE_CAP) < 0.3 * GAIN_NOISE_CAP
+        M, _ = similarity_to(P, P)
+        clear = descriptors(spec, g, 1.0, P, 6.0, M)
+        d_noisy = np.linalg.norm(descriptors(spec, noisy, 1.0, P, 6.0, M) - clear)
+        d_view = np.linalg.norm(descriptors(spec, view, 1.0, P, 6.0, M, gain=gain) - clear)
+        assert d_view < 0.8 * d_noisy, (d_view, d_noisy)
 
 
 def test_signal_to_noise_is_its_definition_on_odd_and_even_boxes():

@@ -85,18 +85,18 @@ def test_unturn_inverts_the_turn():
 
 
 @pytest.mark.parametrize("width,expected_widths",
-                         [(1920, (320, 640, 320, 320, 640, 320, 320, 320, 640, 1280, 1920, 1920)),
-                          (1280, (320, 640, 320, 320, 640, 320, 320, 320, 640, 1280, 1280)),
-                          (640, (320, 640, 320, 320, 640, 320, 320, 320, 640, 640)),
-                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320, 320))])
+                         [(1920, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 1280, 1920, 1920)),
+                          (1280, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 1280, 1280)),
+                          (640, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640)),
+                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320, 320, 320))])
 def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(width, expected_widths):
-    """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it
-    after clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by
-    +30 and -30 degrees, upright at up to twice DETECT_WIDTH after local equalisation (small faces again), a
-    close-up past the frame's edges (``close``), then the thorough ones: upright after local equalisation with
-    each cascade (uneven light), then the smallest faces after local equalisation at 2, 4 and 6 times
-    DETECT_WIDTH, as far as the frame is wide (a search the frame's width already covered is not repeated), and
-    last the smallest faces with the second cascade at the widest of those."""
+    """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it after
+    clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by +30 and
+    -30 degrees, upright at up to twice DETECT_WIDTH after local equalisation (small faces again), a close-up past
+    the frame's edges (``close``), then the thorough ones: upright after local equalisation with each cascade
+    (uneven light), a face of any size cut by the frame's edge (``edge``), then the smallest faces after local
+    equalisation at 2, 4 and 6 times DETECT_WIDTH, as far as the frame is wide (a search the frame's width already
+    covered is not repeated), and last the smallest faces with the second cascade at the widest of those."""
     from aamtrack import detector as det_module
 
     calls = []
@@ -104,19 +104,20 @@ def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(
     class Recording(HaarDetector):
         def detect_all(self, gray, angle=0.0, width=0, **kw):
             calls.append((angle, width, kw.get("equalize", "plain"), kw.get("cascade", 0), kw.get("smallest", False),
-                          kw.get("close", False)))
+                          kw.get("close", False), kw.get("edge", False)))
             return super().detect_all(gray, angle, width, **kw)
 
     assert det_module.DETECT_WIDTH == 320  # the widths below are written for it
     assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
-    n_small = len(expected_widths) - 8
+    n_small = len(expected_widths) - 9
     assert [c[1] for c in calls] == list(expected_widths)
-    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * n_small
-    assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "plain", "local", "local"] + \
-        ["local"] * n_small
-    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 0, 1] + [0] * (n_small - 1) + [1]
-    assert [c[4] for c in calls] == [False] * 8 + [True] * n_small
-    assert [c[5] for c in calls] == [False] * 5 + [True] + [False] * (2 + n_small)
+    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * n_small
+    assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "plain", "local", "local",
+                                     "plain"] + ["local"] * n_small
+    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 0, 1, 0] + [0] * (n_small - 1) + [1]
+    assert [c[4] for c in calls] == [False] * 9 + [True] * n_small
+    assert [c[5] for c in calls] == [False] * 5 + [True] + [False] * (3 + n_small)
+    assert [c[6] for c in calls] == [False] * 8 + [True] + [False] * n_small
 
 
 def test_close_up_boxes_come_back_in_the_frame_and_may_reach_past_it():
@@ -139,6 +140,25 @@ def test_close_up_boxes_come_back_in_the_frame_and_may_reach_past_it():
     assert np.abs(moved - whole[0]).max() < 0.15 * w  # the same face's box
     assert moved[1] < y + 0.15 * h  # its top outside the cut frame
     assert box[0][2] >= det_module.CLOSE_MIN * min(cut.shape) - 1
+
+
+def test_a_small_face_cut_by_the_frames_side_is_found_by_the_edge_search():
+    """``detect_all(edge=True)``: the sample's face in a frame cut through its box at the left (a fifth of the box
+    past the edge), its box a quarter of the frame's height, so not a close-up: neither the plain search nor the
+    close-up one finds it, the edge search gives the face's box, reaching past the frame's side."""
+    det = HaarDetector()
+    frame = cv2.cvtColor(_sample_face_frame(), cv2.COLOR_BGR2GRAY)
+    whole = det.detect_all(frame)
+    assert len(whole) == 1  # the premise: the sample's face, found whole
+    x, y, w, h = whole[0]
+    x0 = int(x + 0.2 * w)
+    side = int(4 * h)
+    cut = cv2.copyMakeBorder(frame, side, side, 0, side, cv2.BORDER_REPLICATE)[:, x0:]
+    cut = np.ascontiguousarray(cut[int(y + side - 1.5 * h):int(y + side + 2.5 * h), :int(4 * h)])
+    assert len(det.detect_all(cut)) == 0 and len(det.detect_all(cut, close=True)) == 0  # not found as it is
+    box = det.detect_all(cut, edge=True)
+    assert len(box)
+    assert box[0][0] < 0 and abs(box[0][0] + 0.2 * w) < 0.15 * w and abs(box[0][2] - w) < 0.15 * w
 
 
 @pytest.mark.shared_data

@@ -77,7 +77,7 @@ class HaarDetector:
         shorter side, searched in the frame with its edges replicated ``CLOSE_PAD`` of that side outwards: a
         close-up whose box reaches past the frame's edge (``CLOSE_PAD``'s note); such boxes may lie partly
         outside the frame. With ``edge``, the same padded frame searched for boxes of any size: a face of any
-        size cut by the frame's edge (``EDGE``'s note)."""
+        size cut by the frame's edge (the note "Edges" before ``CLOSE_PAD``)."""
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         if gray.dtype != np.uint8:
@@ -235,9 +235,9 @@ UNEVEN = (("local", 0), ("local", 1))
 # size, gives it one. Measured 2026-11-30 (shipped 3D model, /tmp script: cap12's first 300 frames moved left so
 # 15% / 30% of the face's width lies past the frame's left edge, tracked as ``aamtrack run`` tracks): tracked
 # 88.0% / 0% -> 98.7% / 98.7% (NME over the visible points 0.0306 -> 0.0298 / 0.0357; over all 68, the hidden
-# ones guessed, 0.0460 -> 0.0448 / 0.0802; as a quick search 100% / 98.7%). A thorough search: the padded frame is 2.25 times the plain one's, and
-# a frame without a face paid 128 ms more for it at 640 x 480 (dark blurred noise, one core, a busy machine;
-# the quick searches 834 ms there), 80 ms at 1280 x 720 (618 ms).
+# ones guessed, 0.0460 -> 0.0448 / 0.0802; as a quick search 100% / 98.7%). A thorough search: the padded frame
+# is 2.25 times the plain one's, and as a quick search a frame without a face paid 128 ms more for it at 640 x 480
+# (dark blurred noise, one core, a busy machine; the quick searches 834 ms there), 80 ms at 1280 x 720 (618 ms).
 CLOSE_PAD = 0.25  # share of the frame's shorter side added on every side (edges replicated)
 CLOSE_MIN = 0.45  # ... searched for boxes at least this share of that side: close-ups only, few scales
 SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH

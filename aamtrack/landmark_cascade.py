@@ -186,7 +186,7 @@ def descriptor_view(image: np.ndarray, scale: float, pts: np.ndarray) -> tuple[n
     face without noise keeps its detail and gets the gain. Cost: a face whose Laplacian estimate (``noise_sd``,
     which reads at least as much as the fine one but for chance: white noise reads alike in both, detail more in
     the Laplacian) is under the cap pays what ``descriptor_gain`` alone costs; a noisier one the fine estimate
-    too (46 us) and, if smoothed, its level's blur (about 80 us for a 640 x 480 frame's face; /tmp harness,
+    too (about 45 us) and, if smoothed, its level's blur (about 80 us for a 640 x 480 frame's face; /tmp harness,
     2026-11-30, medians on the sample clip)."""
     med, sd = face_noise_and_deviation(image, scale, pts)
     if noise_sd(med) <= GAIN_NOISE_CAP or (noise := fine_noise_sd(image, scale, pts)) <= GAIN_NOISE_CAP:

@@ -275,12 +275,12 @@ def test_a_close_up_filling_the_frame_is_found_and_tracked():
     zoomed = [cv2.warpAffine(im, M, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
               for im in images]
 
-    class NoCloseUp(HaarDetector):
+    class Unpadded(HaarDetector):  # neither the close-up search nor the edge one (which looks for any size)
         def _searches(self, frame_width, thorough=True):
-            return [t for t in super()._searches(frame_width, thorough) if not t[5]]
+            return [t for t in super()._searches(frame_width, thorough) if not (t.close or t.edge)]
 
     grey = cv2.cvtColor(zoomed[0], cv2.COLOR_BGR2GRAY)
-    assert NoCloseUp().find(grey) is None  # the premise: none of the other searches finds this face
+    assert Unpadded().find(grey) is None  # the premise: none of the searches in the frame itself finds this face
     results = _track(Tracker(model), zoomed)
     assert [r.status for r in results] == ["detected"] + ["tracked"] * (len(zoomed) - 1)
     errors = [float(nme(r.landmarks, affine_points(p, M))) for r, p in zip(results, pts)]  # (M: OpenCV's pixels)

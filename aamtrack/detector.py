@@ -93,11 +93,10 @@ class HaarDetector:
         else:
             raise ValueError(f"equalize {equalize!r}: one of {', '.join(EQUALIZATIONS)}")
         m = SMALLEST_BOX if smallest else max(SMALLEST_BOX, int(self.min_face_fraction * min(small.shape)))
-        pad = 0
-        if close or edge:
-            if close:
-                m = max(m, int(CLOSE_MIN * min(small.shape)))
-            pad = int(round(CLOSE_PAD * min(small.shape)))
+        if close:
+            m = max(m, int(CLOSE_MIN * min(small.shape)))
+        pad = int(round(CLOSE_PAD * min(small.shape))) if close or edge else 0
+        if pad:
             small = cv2.copyMakeBorder(small, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
         if angle:
             h, w = small.shape

@@ -26,6 +26,22 @@ def _track(tracker: Tracker, images) -> list:
     return list(tracker.track(ReplayFrame(i, i / 25.0, im) for i, im in enumerate(images)))
 
 
+def _errors_with_and_without_the_view(model, images, reference) -> dict:
+    """{True: mean NME, False: mean NME} of the tracks of the images with the landmark cascade's adaptive view
+    (``Searcher.adaptive_view``: contrast gain, noise smoothing) on and off, against the reference points, every
+    frame asserted tracked."""
+    from aamtrack.metrics import nme
+
+    errors = {}
+    for view in (True, False):
+        tracker = Tracker(model)
+        tracker.searcher.adaptive_view = view
+        results = _track(tracker, images)
+        assert all(r.success for r in results)
+        errors[view] = np.mean([float(nme(r.landmarks, p)) for r, p in zip(results, reference)])
+    return errors
+
+
 @pytest.mark.parametrize("kind", ["3d", "2d"])
 def test_shipped_model_tracks_the_sample(kind):
     model = load_model(default_model_path(kind))
@@ -321,19 +337,11 @@ def test_a_dark_face_is_fitted_where_the_bright_one_is(kind):
     where the bright frames' track has them with the landmark cascade's contrast gain
     (``landmark_cascade.descriptor_gain``, in ``descriptor_view``), and drift without it (3D measured 0.0018
     against 0.0129 mean NME: the jaw drew up)."""
-    from aamtrack.metrics import nme
-
     model = load_model(default_model_path(kind))
     images = _sample_images(40)
     bright = [r.landmarks for r in _track(Tracker(model), images)]
     dark = [np.round(0.3 * im).astype(np.uint8) for im in images]
-    errors = {}
-    for gain in (True, False):
-        tracker = Tracker(model)
-        tracker.searcher.adaptive_view = gain
-        results = _track(tracker, dark)
-        assert all(r.success for r in results)
-        errors[gain] = np.mean([float(nme(r.landmarks, p)) for r, p in zip(results, bright)])
+    errors = _errors_with_and_without_the_view(model, dark, bright)
     print(f"{kind} dark frames against the bright track, mean NME: {errors[True]:.4f} with the gain, "
           f"{errors[False]:.4f} without")
     assert errors[True] < 0.006 and errors[True] < 0.5 * errors[False]
@@ -345,20 +353,12 @@ def test_a_noisy_face_is_fitted_nearer_the_clean_one_when_smoothed(kind):
     noise variant): against the clean frames' track the landmark cascade's points lie nearer with the noisy face
     read smoothed (``landmark_cascade.descriptor_view``) than read as it is (measured mean NME 3D 0.0135 against
     0.0174, 2D 0.0146 against 0.0183)."""
-    from aamtrack.metrics import nme
-
     model = load_model(default_model_path(kind))
     images = _sample_images(40)
     clean = [r.landmarks for r in _track(Tracker(model), images)]
     rng = np.random.default_rng(5)
     noisy = [np.clip(im + rng.normal(0.0, 25.0, im.shape), 0, 255).round().astype(np.uint8) for im in images]
-    errors = {}
-    for view in (True, False):
-        tracker = Tracker(model)
-        tracker.searcher.adaptive_view = view
-        results = _track(tracker, noisy)
-        assert all(r.success for r in results)
-        errors[view] = np.mean([float(nme(r.landmarks, p)) for r, p in zip(results, clean)])
+    errors = _errors_with_and_without_the_view(model, noisy, clean)
     print(f"{kind} noisy frames against the clean track, mean NME: {errors[True]:.4f} smoothed, "
           f"{errors[False]:.4f} as they are")
     assert errors[True] < 0.018 and errors[True] < 0.9 * errors[False]

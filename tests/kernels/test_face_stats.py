@@ -47,23 +47,28 @@ def sharpness_slow(image, scale, pts):
     return energy(b) / e if e > 1e-6 else 0.0
 
 
-def signal_to_noise_slow(image, scale, pts):
+def _face_crop(image, scale, pts):
+    """The face's box (no pad, at least 8 pixels a side) as float32, or None."""
     box = _box(image.shape, scale, pts, 0, 8)
     if box is None:
-        return 0.0
+        return None
     x0, y0, x1, y1 = box
-    c = np.asarray(image[y0:y1, x0:x1], np.float32)
+    return np.asarray(image[y0:y1, x0:x1], np.float32)
+
+
+def signal_to_noise_slow(image, scale, pts):
+    c = _face_crop(image, scale, pts)
+    if c is None:
+        return 0.0
     lap = np.abs(4.0 * c[1:-1, 1:-1] - c[:-2, 1:-1] - c[2:, 1:-1] - c[1:-1, :-2] - c[1:-1, 2:])
     noise = float(np.median(lap)) / (0.6745 * math.sqrt(20.0))
     return float(c.astype(np.float64).std()) / (noise + 0.5)
 
 
 def fine_noise_slow(image, scale, pts):
-    box = _box(image.shape, scale, pts, 0, 8)
-    if box is None:
+    c = _face_crop(image, scale, pts)
+    if c is None:
         return -1.0
-    x0, y0, x1, y1 = box
-    c = np.asarray(image[y0:y1, x0:x1], np.float32)
     e, up, down, left, right = c[1:-1, 1:-1], c[:-2, 1:-1], c[2:, 1:-1], c[1:-1, :-2], c[1:-1, 2:]
     edges = (up + down) + (left + right)
     corners = (c[:-2, :-2] + c[:-2, 2:]) + (c[2:, :-2] + c[2:, 2:])

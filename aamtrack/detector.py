@@ -123,10 +123,12 @@ class HaarDetector:
         in the frame turned by each of ``rolled`` degrees (the box is in that turned frame: ``unturn`` maps points
         back); the largest upright one at up to twice the detection width after local (CLAHE) equalisation (small
         faces again); the largest close-up, its box reaching past the frame's edges (``CLOSE_PAD``); and, when
-        ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven
-        light), then the smallest faces after local equalisation too (``SMALLEST_WIDTHS``, then with the second
-        cascade). None when there is none: a frame without a face costs all of these searches, the thorough ones
-        most (``TrackerConfig.thorough_every`` has the figures).
+        ``thorough``, the largest upright one after local equalisation (``UNEVEN``: uneven light), the largest
+        cut by the frame's edge (the note "Edges" before ``CLOSE_PAD``), the largest in the frame turned by each of
+        ``rolled`` degrees at up to twice the detection width after local equalisation (the note "Small rolled
+        faces" there), then the smallest faces after local equalisation too (``SMALLEST_WIDTHS``, then with the
+        second cascade). None when there is none: a frame without a face costs all of these searches, the
+        thorough ones most (``TrackerConfig.thorough_every`` has the figures).
 
         The second search is for small faces, which a plain equalisation hides wherever a flat background fills
         most of the frame: its grey level takes most of the output range, and the face's contrast is squeezed
@@ -164,6 +166,7 @@ class HaarDetector:
             return tries
         tries += [Search(equalize=equalize, cascade=cascade) for equalize, cascade in UNEVEN]
         tries += [Search(edge=True)]  # a face of any size cut by the frame's edge
+        tries += [Search(angle=angle, width=2 * DETECT_WIDTH, equalize="local") for angle in self.rolled]  # small
         widths = smallest_widths(frame_width)
         smallest = [Search(width=width, equalize="local", smallest=True) for width in widths]
         return tries + smallest + [Search(width=widths[-1], equalize="local", cascade=1, smallest=True)]  # alt2
@@ -237,6 +240,20 @@ UNEVEN = (("local", 0), ("local", 1))
 # ones guessed, 0.0460 -> 0.0448 / 0.0802; as a quick search 100% / 98.7%). A thorough search: the padded frame
 # is 2.25 times the plain one's, and as a quick search a frame without a face paid 128 ms more for it at 640 x 480
 # (dark blurred noise, one core, a busy machine; the quick searches 834 ms there), 80 ms at 1280 x 720 (618 ms).
+# Small rolled faces: the turned searches run at the detection width (320 px), where a face about 35 px between
+# the eyes in a 960 or 640 px frame is at the cascade's smallest window, and the upright small-face searches
+# miss a face rolled 25 degrees: a far speaker under a tilted camera was not found until it happened to be
+# upright or larger. The thorough searches turn the frame by each of ``rolled`` at twice the detection width
+# after local equalisation (the small-face searches' equalisation: in a dark noisy frame, plain or clipped found
+# none). Measured 2026-11-30 (shipped 3D model): the sample clip shrunk to 0.55 (33 px between the eyes), rolled
+# 25 degrees, dim and noisy in a 960x540 frame, tracked as ``aamtrack run`` tracks: the first detection at frame
+# 12 -> 0 (278 -> 290 of 302 frames tracked; the other 12 are a faceless gap); ``benchmarks/hard_clips.py`` hard2
+# (34 px, rolled up to 25 degrees, dim) 199 -> 203 of 300 (NME 0.0377 -> 0.0380), the other clips the same,
+# rooms 0 tracked either way; ``benchmarks/robustness.py`` stills small30 97.6% -> 97.9% within NME 0.08, rot+30
+# 97.0% -> 97.6%, rot-30, small30_hd and dim_small the same, the 21 video rows identical. Cost, on a frame
+# without a face only, thorough searches (every ``TrackerConfig.thorough_every`` lost frames): about 40 ms
+# at 1280x720 (a dark room) to 270-370 ms at 640x480 (a dark noisy room, blurred noise; those searches 1.0-1.4 s
+# before; one core): local equalisation of a noisy frame at full size gives the cascade much to look at.
 CLOSE_PAD = 0.25  # share of the frame's shorter side added on every side (edges replicated)
 CLOSE_MIN = 0.45  # ... searched for boxes at least this share of that side: close-ups only, few scales
 SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH

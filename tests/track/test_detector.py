@@ -4,6 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
+from aamtrack import detector as det_module
 from aamtrack.detector import HaarDetector, mirrored, overlap, unturn
 import synth
 
@@ -85,16 +86,17 @@ def test_unturn_inverts_the_turn():
 
 
 @pytest.mark.parametrize("width,expected_widths",
-                         [(1920, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 1280, 1920, 1920)),
-                          (1280, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 1280, 1280)),
-                          (640, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640)),
-                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320, 320, 320))])
-def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(width, expected_widths):
+                         [(1920, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640, 640, 1280, 1920, 1920)),
+                          (1280, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640, 640, 1280, 1280)),
+                          (640, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640, 640, 640)),
+                          (320, (320, 640, 320, 320, 640, 320, 320, 320, 320, 640, 640, 320, 320))])
+def test_find_runs_every_search_in_order_on_a_frame_without_a_face(width, expected_widths):
     """On a frame without a face every search runs, in order: upright at DETECT_WIDTH, upright at up to twice it after
     clipped equalisation (small faces; never upsampled: a 320-wide frame is searched as it is), turned by +30 and
     -30 degrees, upright at up to twice DETECT_WIDTH after local equalisation (small faces again), a close-up past
     the frame's edges (``close``), then the thorough ones: upright after local equalisation with each cascade
-    (uneven light), a face of any size cut by the frame's edge (``edge``), then the smallest faces after local
+    (uneven light), a face of any size cut by the frame's edge (``edge``), turned by +30 and -30 degrees at up to
+    twice DETECT_WIDTH after local equalisation (small rolled faces), then the smallest faces after local
     equalisation at 2, 4 and 6 times DETECT_WIDTH, as far as the frame is wide (a search the frame's width already
     covered is not repeated), and last the smallest faces with the second cascade at the widest of those."""
     from aamtrack import detector as det_module
@@ -109,15 +111,15 @@ def test_find_searches_upright_then_wider_then_turned_then_uneven_then_smallest(
 
     assert det_module.DETECT_WIDTH == 320  # the widths below are written for it
     assert Recording().find(np.full((width * 3 // 4, width), 128, np.uint8)) is None
-    n_small = len(expected_widths) - 9
+    n_small = len(expected_widths) - 11
     assert [c[1] for c in calls] == list(expected_widths)
-    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * n_small
+    assert [c[0] for c in calls] == [0.0, 0.0, 30.0, -30.0, 0.0, 0.0, 0.0, 0.0, 0.0, 30.0, -30.0] + [0.0] * n_small
     assert [c[2] for c in calls] == ["plain", "clipped", "plain", "plain", "local", "plain", "local", "local",
-                                     "plain"] + ["local"] * n_small
-    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 0, 1, 0] + [0] * (n_small - 1) + [1]
-    assert [c[4] for c in calls] == [False] * 9 + [True] * n_small
-    assert [c[5] for c in calls] == [False] * 5 + [True] + [False] * (3 + n_small)
-    assert [c[6] for c in calls] == [False] * 8 + [True] + [False] * n_small
+                                     "plain", "local", "local"] + ["local"] * n_small
+    assert [c[3] for c in calls] == [0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0] + [0] * (n_small - 1) + [1]
+    assert [c[4] for c in calls] == [False] * 11 + [True] * n_small
+    assert [c[5] for c in calls] == [False] * 5 + [True] + [False] * (5 + n_small)
+    assert [c[6] for c in calls] == [False] * 8 + [True] + [False] * (2 + n_small)
 
 
 def test_close_up_boxes_come_back_in_the_frame_and_may_reach_past_it():
@@ -160,6 +162,36 @@ def test_a_small_face_cut_by_the_frames_side_is_found_by_the_edge_search():
     assert len(box)
     assert box[0][0] < 0 and abs(box[0][0] + 0.2 * w) < 0.15 * w and abs(box[0][2] - w) < 0.15 * w
 
+
+
+@pytest.mark.parametrize("roll", [25.0, -25.0])
+def test_a_small_rolled_face_in_a_dim_frame_is_found_by_the_wider_turned_searches(roll):
+    """The sample's face shrunk to about 33 px between the outer eye corners, rolled by 25 degrees, dim and noisy in
+    a 960x540 frame (a speaker far off on a stage, the camera tilted): at the detection width it is too small for
+    the turned searches and, rolled, the upright ones miss it, so no other search finds it; turned by 30 degrees
+    at twice the detection width after local equalisation (thorough ``find``), its box is on the face."""
+    det = HaarDetector()
+    frame = _sample_face_frame()
+    x, y, w, h = det.detect_all(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))[0]  # the sample's face, upright
+    M = cv2.getRotationMatrix2D((frame.shape[1] / 2, frame.shape[0] / 2), roll, 0.55)
+    M[:, 2] += (120, 200)
+    dim = cv2.warpAffine(frame, M, (960, 540), borderValue=(20, 15, 25)).astype(np.float32) * np.float32(
+        [0.30, 0.28, 0.42])
+    dim += np.random.default_rng(0).normal(0, 6, dim.shape).astype(np.float32)
+    gray = cv2.cvtColor(np.clip(dim, 0, 255).astype(np.uint8), cv2.COLOR_BGR2GRAY)
+    centre = np.array([x + w / 2, y + h / 2]) @ M[:, :2].T + M[:, 2]
+    searches = det._searches(gray.shape[1])
+    wide_turned = [s for s in searches if s.angle and s.width > det_module.DETECT_WIDTH]
+    assert [s.angle for s in wide_turned] == [30.0, -30.0]
+    assert all(len(det.detect_all(gray, **s._asdict())) == 0 for s in searches if s not in wide_turned)
+    found = det.find(gray)
+    assert found is not None and found[1] == -np.sign(roll) * 30.0  # turned back upright
+    box, angle = found
+    corners = np.array([[box[0], box[1]], [box[0] + box[2], box[1] + box[3]]])
+    # on the face (loosely: it is 5 degrees off the turned search; measured 0.28 and 0.04 box widths off, and
+    # the tracker's fit from it is accepted: tests/test_shipped_models.py)
+    assert np.linalg.norm(unturn(corners, angle, gray.shape).mean(0) - centre) < 0.35 * box[2]
+    assert abs(box[2] - 0.55 * w) < 0.3 * 0.55 * w
 
 @pytest.mark.shared_data
 def test_the_quick_searches_find_small_faces_after_local_equalisation():

@@ -244,16 +244,18 @@ UNEVEN = (("local", 0), ("local", 1))
 # the eyes in a 960 or 640 px frame is at the cascade's smallest window, and the upright small-face searches
 # miss a face rolled 25 degrees: a far speaker under a tilted camera was not found until it happened to be
 # upright or larger. The thorough searches turn the frame by each of ``rolled`` at twice the detection width
-# after local equalisation (the small-face searches' equalisation: in a dark noisy frame, plain or clipped found
-# none). Measured 2026-11-30 (shipped 3D model): the sample clip shrunk to 0.55 (33 px between the eyes), rolled
-# 25 degrees, dim and noisy in a 960x540 frame, tracked as ``aamtrack run`` tracks: the first detection at frame
-# 12 -> 0 (278 -> 290 of 302 frames tracked; the other 12 are a faceless gap); ``benchmarks/hard_clips.py`` hard2
+# after local equalisation, as the small-face searches do (on the clip below, the first 14 frames: plain
+# equalisation found the face in none, clipped and local in all; on a dark room at 1280x720 the two searches
+# cost 245 ms clipped, 41 local). Measured 2026-11-30 (shipped 3D model): the sample clip shrunk to 0.55 (33 px
+# between the eyes), rolled 25 degrees, dim and noisy in a 960x540 frame, tracked as ``aamtrack run`` tracks:
+# the first detection at frame 12 -> 0 (278 -> 290 of 302 frames tracked; the other 12 are a faceless gap);
+# ``benchmarks/hard_clips.py`` hard2
 # (34 px, rolled up to 25 degrees, dim) 199 -> 203 of 300 (NME 0.0377 -> 0.0380), the other clips the same,
 # rooms 0 tracked either way; ``benchmarks/robustness.py`` stills small30 97.6% -> 97.9% within NME 0.08, rot+30
 # 97.0% -> 97.6%, rot-30, small30_hd and dim_small the same, the 21 video rows identical. Cost, on a frame
-# without a face only, thorough searches (every ``TrackerConfig.thorough_every`` lost frames): about 40 ms
-# at 1280x720 (a dark room) to 270-370 ms at 640x480 (a dark noisy room, blurred noise; those searches 1.0-1.4 s
-# before; one core): local equalisation of a noisy frame at full size gives the cascade much to look at.
+# without a face only, thorough searches (every ``TrackerConfig.thorough_every`` lost frames): about 40 ms on a
+# dark room at 1280x720, 270-290 ms on one at 640x480, 320-370 ms on blurred noise at either size (the thorough
+# searches took 1.0-2.9 s there before; one core): CLAHE on a noisy frame gives the cascade much to look at.
 CLOSE_PAD = 0.25  # share of the frame's shorter side added on every side (edges replicated)
 CLOSE_MIN = 0.45  # ... searched for boxes at least this share of that side: close-ups only, few scales
 SMALLEST_WIDTHS = (2, 4, 6)  # multiples of DETECT_WIDTH

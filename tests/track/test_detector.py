@@ -99,8 +99,6 @@ def test_find_runs_every_search_in_order_on_a_frame_without_a_face(width, expect
     twice DETECT_WIDTH after local equalisation (small rolled faces), then the smallest faces after local
     equalisation at 2, 4 and 6 times DETECT_WIDTH, as far as the frame is wide (a search the frame's width already
     covered is not repeated), and last the smallest faces with the second cascade at the widest of those."""
-    from aamtrack import detector as det_module
-
     calls = []
 
     class Recording(HaarDetector):
@@ -127,8 +125,6 @@ def test_close_up_boxes_come_back_in_the_frame_and_may_reach_past_it():
     a face drawn whole in a larger frame and the same frame cut through the face's box give the same box (within
     the searches' scale steps), partly outside the cut frame; boxes smaller than CLOSE_MIN of the frame's shorter
     side are not looked for."""
-    from aamtrack import detector as det_module
-
     det = HaarDetector()
     frame = cv2.cvtColor(_sample_face_frame(), cv2.COLOR_BGR2GRAY)
     whole = det.detect_all(frame)
@@ -161,7 +157,6 @@ def test_a_small_face_cut_by_the_frames_side_is_found_by_the_edge_search():
     box = det.detect_all(cut, edge=True)
     assert len(box)
     assert box[0][0] < 0 and abs(box[0][0] + 0.2 * w) < 0.15 * w and abs(box[0][2] - w) < 0.15 * w
-
 
 
 @pytest.mark.parametrize("roll", [25.0, -25.0])

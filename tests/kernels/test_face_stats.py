@@ -101,25 +101,20 @@ def test_sharpness_matches_its_slow_reference():
     assert n > 30  # most cases have a box to measure
 
 
-def test_signal_to_noise_matches_its_slow_reference():
-    n = 0
-    for img, scale, pts in _cases():
-        want = signal_to_noise_slow(img, scale, pts)
-        got = signal_to_noise(img, scale, pts)
-        assert abs(got - want) <= 1e-6 * max(1.0, abs(want))  # the same float32 Laplacian and median
-        n += want > 0
-    assert n > 30
-
-
-def test_fine_noise_matches_its_slow_reference():
+@pytest.mark.parametrize("which", ["signal_to_noise", "fine_noise"])
+def test_median_statistics_match_their_slow_references(which):
+    """``signal_to_noise`` (0 without a box) and ``face_fine_noise`` (-1 without one) against numpy: the same
+    float32 stencil sums and median."""
     from aamtrack.kernels import face_fine_noise
 
+    fast, slow, boxed = {"signal_to_noise": (signal_to_noise, signal_to_noise_slow, lambda v: v > 0),
+                         "fine_noise": (face_fine_noise, fine_noise_slow, lambda v: v >= 0)}[which]
     n = 0
     for img, scale, pts in _cases():
-        want = fine_noise_slow(img, scale, pts)
-        got = face_fine_noise(img, scale, pts)
-        assert abs(got - want) <= 1e-6 * max(1.0, abs(want))  # the same float32 sums and median
-        n += want >= 0
+        want = slow(img, scale, pts)
+        got = fast(img, scale, pts)
+        assert abs(got - want) <= 1e-6 * max(1.0, abs(want))
+        n += boxed(want)
     assert n > 30
 
 

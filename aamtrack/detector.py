@@ -249,10 +249,10 @@ UNEVEN = (("local", 0), ("local", 1))
 # cost 245 ms clipped, 41 local). Measured 2026-11-30 (shipped 3D model): the sample clip shrunk to 0.55 (33 px
 # between the eyes), rolled 25 degrees, dim and noisy in a 960x540 frame, tracked as ``aamtrack run`` tracks:
 # the first detection at frame 12 -> 0 (278 -> 290 of 302 frames tracked; the other 12 are a faceless gap);
-# ``benchmarks/hard_clips.py`` hard2
-# (34 px, rolled up to 25 degrees, dim) 199 -> 203 of 300 (NME 0.0377 -> 0.0380), the other clips the same,
-# rooms 0 tracked either way; ``benchmarks/robustness.py`` stills small30 97.6% -> 97.9% within NME 0.08, rot+30
-# 97.0% -> 97.6%, rot-30, small30_hd and dim_small the same, the 21 video rows identical. Cost, on a frame
+# ``benchmarks/hard_clips.py`` hard2 (34 px, rolled up to 25 degrees, dim) 199 -> 203 of 300 (NME 0.0377 ->
+# 0.0380), the other clips the same, rooms 0 tracked either way; ``benchmarks/robustness.py`` stills small30
+# 97.6% -> 97.9% within NME 0.08, rot+30 97.0% -> 97.6%, rot-30, small30_hd and dim_small the same, the 21 video
+# rows identical. Cost, on a frame
 # without a face only, thorough searches (every ``TrackerConfig.thorough_every`` lost frames): about 40 ms on a
 # dark room at 1280x720, 270-290 ms on one at 640x480, 320-370 ms on blurred noise at either size (the thorough
 # searches took 1.0-2.9 s there before; one core): CLAHE on a noisy frame gives the cascade much to look at.

@@ -13,7 +13,7 @@ from typing import Callable, Iterable
 import cv2
 import numpy as np
 
-from ..detector import guess_points
+from ..detector import HaarDetector, guess_points
 from ..imaging import Features, Levels, level_factor, level_shift, to_gray32
 from ..kernels import accumulate_gradient, project
 from ..landmark_cascade import LandmarkCascade, sharpness, signal_to_noise
@@ -38,7 +38,8 @@ from .shape_prior import learn_shape_prior
 from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
 from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
-                        landmark_validator_fit, logistic_fit, non_face_images, occluded_copy, soft_copy)
+                        landmark_validator_fit, logistic_fit, non_face_images, occluded_copy, soft_copy,
+                        noise_frame, tiny_dim_copy)
 
 log = logging.getLogger(__name__)
 
@@ -177,6 +178,14 @@ class TrainConfig:
     0.0332, hard6 0.0310 -> 0.0348); on detections only, with the dim validator learned from its fits, cap12
     made small and dim read 96.0% / 0.0316 -> 97.5% / 0.0351 tracked / NME, 3 frames of a false detection at
     0.79 among them (benchmarks/README.md, robustness).
+    dim_tiny: the validator for dim faces also learns, from every this-many-th photo (0: none), from the photo
+    shrunk until the face is 10-40 px between the outer eye corners and made dim at that size
+    (``train.validator.tiny_dim_copy``: its noise as coarse as the face is small, where ``dim_copy`` enlarges its
+    small faces back) and from the fits at the two strongest of Haar's weakest hits on a frame of blurred noise
+    (``noise_frame``; one neighbour, the smallest boxes): hard negatives, what the tracker's smallest-face
+    searches give on noise. These samples are left out of the false-accept matching (``held_out_logits``; the
+    landmark validator never sees their kinds). Learned without them, the validator accepted fits of blurred
+    noise at 13-30 px between the eyes: ``aamtrack fit`` fitted 14 of 150 noise stills (/tmp, 2026-11-30).
     shape_prior_variance: the shape prior (``Model.shape_prior``, ``train.shape_prior``) keeps the modes of the
     labelled shapes (training images and mirrors) that explain this share of their variance (0: no prior)."""
 
@@ -223,6 +232,7 @@ class TrainConfig:
     dim_validator: float = 4.5
     soft_validator: bool = True
     dim_cascade: float = 2.0
+    dim_tiny: int = 2
     shape_prior_variance: float = 0.97
     seed: int = 0
 
@@ -614,13 +624,16 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     the validator for soft faces instead, from a blurred copy of every photo (``soft_copy``), its fits kept where
     the soft landmark cascade took them (as ``Model.validator_for`` hands them to it), and from non-face images
     with a blurred one among them.
+    The validator for dim faces also learns from far faces at their own scale and Haar's weakest hits on noise
+    (``TrainConfig.dim_tiny``: ``tiny_dim_copy``, ``noise_frame``).
     Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else
-    None)."""
+    None, whether each counts in matching the landmark validator's false accepts: all but the far faces' and the
+    noise frames' fits, kinds the landmark validator never sees)."""
     searcher = Searcher(model)
     sm, lc = model.shape, model.landmark_cascade
-    S, Z, y = [], [], []
+    S, Z, y, matched = [], [], [], []
 
-    def add(levels, p0, truth):
+    def add(levels, p0, truth, match=True):
         r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
         res = searcher.fit(levels, p0, landmarks=False)
         img = levels.resampled(r)
@@ -639,12 +652,17 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         S.append(res.stats)
         Z.append(z)
         y.append(float(truth is not None and e < 0.06))
+        matched.append(match)
 
     def start(box, roll=0.0):
         p0 = _box_start(sm, box, box_points)
         p0[2] += roll
         return p0
 
+    tiny_rng = np.random.default_rng(config.seed + 13)  # its own draws: the other samples stay as they were
+    # Haar's weakest hits on noise (one neighbour): a box on 21 of 40 noise frames in this search, none with the
+    # tracker's four; the patches that look most like a face to it
+    haar = HaarDetector(min_neighbors=1) if dim_below > 0 and config.dim_tiny > 0 else None
     for i in range(n_orig):
         truth = pts[i]
         eye = float(np.linalg.norm(truth[45] - truth[36]))
@@ -681,15 +699,22 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
                 blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
             for blank in blanks:
                 add(Levels(blank, model.features), start(boxes[i]), None)
+        if dim_below > 0 and config.dim_tiny > 0 and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
+            img, box, truth_s = tiny_dim_copy(gray[i], boxes[i], truth, eye, tiny_rng)
+            add(Levels(img, model.features), start(box), truth_s, False)
+            noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
+            for box in haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2]:
+                add(Levels(noise, model.features), start(box), None, False)
     y = np.array(y)
     name = "validator for dim faces" if dim_below > 0 else "validator for soft faces" if soft else \
         "landmark validator"
     log.info("%s: %d positives, %d negatives", name, int(y.sum()), int(len(y) - y.sum()))
     if (dim_below > 0 or soft) and min(y.sum(), len(y) - y.sum()) < 20:
         log.info("%s: too few fits of either kind, none learned", name)
-        return None, y, None
+        return None, y, None, np.array(matched)
     S, Z = np.array(S), np.array(Z)
-    return landmark_validator_fit(S, Z, y, STAT_NAMES), y, held_out_logits(S, Z, y, STAT_NAMES) if held_out else None
+    return (landmark_validator_fit(S, Z, y, STAT_NAMES), y,
+            held_out_logits(S, Z, y, STAT_NAMES) if held_out else None, np.array(matched))
 
 
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
@@ -860,16 +885,16 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                             soft_above=soft_above, dim_cascade=dim_cascade)
         dim = config.dim_validator > 0
         soft_val = config.soft_validator and soft_cascade is not None
-        landmark_validator, y0, logit0 = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
-                                                             np.random.default_rng(config.seed + 5), config,
-                                                             held_out=dim or soft_val)
+        landmark_validator, y0, logit0, _ = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
+                                                                np.random.default_rng(config.seed + 5), config,
+                                                                held_out=dim or soft_val)
 
-        def as_wary(v, y, logit, name):  # as wary of non-faces as the landmark validator, held out
+        def as_wary(v, y, logit, matched, name):  # as wary of non-faces as the landmark validator, held out
             if v is None:
                 return None, None
             rate = float(np.mean(logit0[y0 < 0.5] >= 0))
-            shift = false_accept_shift(logit[y < 0.5], rate)
-            rec = {"false_accepts": rate, "false_accepts_before": float(np.mean(logit[y < 0.5] >= 0)),
+            shift = false_accept_shift(logit[(y < 0.5) & matched], rate)
+            rec = {"false_accepts": rate, "false_accepts_before": float(np.mean(logit[(y < 0.5) & matched] >= 0)),
                    "false_rejects": float(np.mean(logit[y > 0.5] < shift)), "bias_shift": shift}
             log.info("%s: held out, %.2f%% of negatives accepted before (the landmark validator's %.2f%%), its bias "
                      "lowered by %.2f to match", name, 100 * rec["false_accepts_before"], 100 * rate, shift)

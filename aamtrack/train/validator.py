@@ -124,6 +124,38 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
     return np.clip(out + rng.normal(0.0, rng.uniform(3.0, 14.0), gray.shape), 0, 255).astype(np.float32)
 
 
+def tiny_dim_copy(gray: np.ndarray, box, points: np.ndarray, eye_px: float, rng: np.random.Generator, *,
+                  eye_range: tuple = (10.0, 40.0), min_size: tuple = (240, 320)) -> tuple:
+    """A far face in a dim room at its own scale, for the validator of dim faces: (image, box, points), the grey
+    (H, W) float32 photo shrunk until its face is ``eye_range`` px between the outer eye corners (``eye_px`` now),
+    then made dim at that size (``dim_copy``: its sensor noise as coarse as the face is small), with the photo's
+    face box (x, y, w, h) and 68 points (OpenCV's pixels) shrunk with it. Images smaller than ``min_size`` (h, w)
+    are padded right and bottom by reflection. ``dim_copy``'s small faces are enlarged back, their noise as fine
+    as the photo's."""
+    import cv2
+
+    f = rng.uniform(*eye_range) / max(eye_px, 1.0)
+    h, w = gray.shape
+    small = cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+    pad_h, pad_w = max(0, min_size[0] - small.shape[0]), max(0, min_size[1] - small.shape[1])
+    if pad_h or pad_w:
+        small = cv2.copyMakeBorder(small, 0, pad_h, 0, pad_w, cv2.BORDER_REFLECT_101)
+    sbox = np.array([(box[0] + 0.5) * f - 0.5, (box[1] + 0.5) * f - 0.5, box[2] * f, box[3] * f])
+    return dim_copy(small, eye_px * f, rng), sbox, (points + 0.5) * f - 0.5
+
+
+def noise_frame(shape: tuple, rng: np.random.Generator) -> np.ndarray:
+    """A grey (H, W) float32 frame of Gaussian noise, mean 20-160 and sigma 5-40 grey levels, blurred by 0.4-2.5
+    px four times in five: texture where Haar's smallest-face searches find "faces" (``aamtrack fit`` fitted 5 of
+    100 such stills before the validator of dim faces learned from its fits there)."""
+    import cv2
+
+    noise = rng.normal(rng.uniform(20.0, 160.0), rng.uniform(5.0, 40.0), shape)
+    if rng.random() < 0.8:
+        noise = cv2.GaussianBlur(noise, (0, 0), rng.uniform(0.4, 2.5))
+    return np.clip(noise, 0, 255).astype(np.float32)
+
+
 def soft_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
     """A blurred copy of a grey (H, W) float32 image for the validator of soft faces (``Model.soft_validator``):
     Gaussian blur of sigma 0.02-0.08 outer eye-corner distances (``eye_px``), the range the soft couples and soft

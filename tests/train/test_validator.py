@@ -165,3 +165,47 @@ def test_occluded_copies_cover_part_of_the_face_and_nothing_far_from_it():
         dark += np.mean(out[changed] < 15) > 0.5
     assert 0.01 < np.median(shares) < 0.35 and max(shares) < 0.8
     assert 5 <= dark <= 35  # about half from the donor (all 10), the rest flat grey levels
+
+
+def test_tiny_dim_copies_shrink_the_face_to_its_far_size_with_its_box_and_points():
+    """``tiny_dim_copy``: the photo shrunk until the face is 10-40 px between the outer eye corners, padded to at
+    least 240x320, and its box and points shrunk with it: a bright blob drawn at a point of the photo is found
+    at the returned point (its centroid, median over draws: the copy's sensor noise moves single draws)."""
+    import cv2
+
+    from aamtrack.train.validator import tiny_dim_copy
+
+    rng = np.random.default_rng(SEED)
+    H, W = 900, 1200
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    points = np.array([[400.0, 450.0], [800.0, 450.0]])  # the "outer eye corners": 400 px apart
+    gray = np.zeros((H, W), np.float32)
+    for x, y in points:
+        gray += 255.0 * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * 60.0 ** 2))
+    box = np.array([350.0, 300.0, 500.0, 500.0])
+    errs = []
+    for _ in range(12):
+        out, sbox, spts = tiny_dim_copy(np.clip(gray, 0, 255), box, points, 400.0, rng)
+        assert out.dtype == np.float32 and out.shape[0] >= 240 and out.shape[1] >= 320
+        f = np.linalg.norm(spts[1] - spts[0]) / 400.0
+        assert 10.0 <= 400.0 * f <= 40.0
+        assert np.allclose(sbox[2:], box[2:] * f) and np.allclose(sbox[:2], (box[:2] + 0.5) * f - 0.5)
+        x0, y0 = np.round(spts[0]).astype(int)
+        r = max(3, int(round(2.5 * 60.0 * f)))
+        win = cv2.GaussianBlur(out, (0, 0), 1.0)[y0 - r:y0 + r + 1, x0 - r:x0 + r + 1].astype(np.float64)
+        win = np.clip(win - np.median(out), 0, None)
+        gy, gx = np.mgrid[y0 - r:y0 + r + 1, x0 - r:x0 + r + 1]
+        errs.append(np.hypot((win * gx).sum() / win.sum() - spts[0, 0], (win * gy).sum() / win.sum() - spts[0, 1]))
+    assert np.median(errs) < 0.3  # under a third of a pixel (0.15 measured; half a pixel off would read ~0.45)
+
+
+def test_noise_frames_are_grey_noise_of_the_stated_levels():
+    """``noise_frame``: float32 of the shape, mean 20-160, its pixels' spread 5-40 grey levels (less where blurred,
+    never flat), within 0-255."""
+    from aamtrack.train.validator import noise_frame
+
+    rng = np.random.default_rng(SEED)
+    for _ in range(20):
+        n = noise_frame((120, 160), rng)
+        assert n.shape == (120, 160) and n.dtype == np.float32 and n.min() >= 0 and n.max() <= 255
+        assert 15 < n.mean() < 165 and 0.5 < n.std() < 42

@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     model_path = args.model or default_model_path(args.kind)
     s = fit_images(args.input, model_path=model_path, out_dir=output_dir(args.input, args.out_dir), pts=args.pts,
                    mirror=not args.no_mirror, jobs=args.jobs or default_jobs())
-    print(f"{s['images']} images: {s['fitted']} fitted, {s['rejected']} rejected (low confidence), "
+    print(f"{s['images']} images: {s['fitted']} fitted, {s['rejected']} rejected, "
           f"{s['no_face']} without a face found, {s['unreadable']} unreadable -> "
           + ", ".join(display_name(v) for v in s["outputs"].values()))
     return 0

@@ -225,7 +225,9 @@ def test_noise_of_ffmpeg_is_silenced(tmp_path, model_file):
     env = {k: v for k, v in os.environ.items() if not k.startswith("OPENCV_")}
     quiet = subprocess.run(cmd, capture_output=True, text=True, env=env)
     assert quiet.returncode == 0, quiet.stderr
-    noisy = [s for s in quiet.stderr.splitlines() if not s.startswith(("WARNING:", "aamtrack run: warning"))]
+    own = ("WARNING:", "aamtrack run: warning", "compiling kernels", "kernels ready")  # the last two: a slow
+    # cache load on a busy machine (3.2 s against the 1.5 s notice, seen once under four other jobs)
+    noisy = [s for s in quiet.stderr.splitlines() if not s.startswith(own)]
     assert noisy == [], noisy
     verbose = subprocess.run(cmd[:3] + ["-v"] + cmd[3:], capture_output=True, text=True, env=env)
     assert verbose.returncode == 0

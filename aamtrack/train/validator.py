@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..imaging import level_shift
 from ..model import Validator
 
 
@@ -98,6 +99,15 @@ def degraded(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
     return (128.0 + (gray - 128.0) * rng.uniform(0.2, 0.5)).astype(np.float32)
 
 
+def _shrunk(gray: np.ndarray, f: float) -> np.ndarray:
+    """A grey image resized by f (area resampling), at least 1x1: ``dim_copy``'s and ``tiny_dim_copy``'s far face.
+    (Its size is rounded, so its true factor differs from f by up to half a pixel over the width.)"""
+    import cv2
+
+    h, w = gray.shape
+    return cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+
+
 def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
     """A copy of a grey (H, W) float32 image as a camera in a dim room makes it, for the validator of dim faces
     (``Model.dim_validator``): half the time the optics first (the face shrunk to 25-60 px between the outer eye
@@ -111,7 +121,7 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
         f = rng.uniform(25.0, 60.0) / max(eye_px, 1.0)
         if f < 0.9 and rng.random() < 0.7:
             h, w = gray.shape
-            small = cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+            small = _shrunk(gray, f)
             if rng.random() < 0.5:
                 small = blurred_copy(small, eye_px, (0.02, 0.07), rng, scale=f)
             out = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -135,13 +145,13 @@ def tiny_dim_copy(gray: np.ndarray, box, points: np.ndarray, eye_px: float, rng:
     import cv2
 
     f = rng.uniform(*eye_range) / max(eye_px, 1.0)
-    h, w = gray.shape
-    small = cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+    small = _shrunk(gray, f)
     pad_h, pad_w = max(0, min_size[0] - small.shape[0]), max(0, min_size[1] - small.shape[1])
     if pad_h or pad_w:
         small = cv2.copyMakeBorder(small, 0, pad_h, 0, pad_w, cv2.BORDER_REFLECT_101)
-    sbox = np.array([(box[0] + 0.5) * f - 0.5, (box[1] + 0.5) * f - 0.5, box[2] * f, box[3] * f])
-    return dim_copy(small, eye_px * f, rng), sbox, (points + 0.5) * f - 0.5
+    shift = level_shift(f)
+    sbox = np.array([box[0] * f + shift, box[1] * f + shift, box[2] * f, box[3] * f])
+    return dim_copy(small, eye_px * f, rng), sbox, points * f + shift
 
 
 def noise_frame(shape: tuple, rng: np.random.Generator) -> np.ndarray:

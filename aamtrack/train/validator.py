@@ -99,13 +99,15 @@ def degraded(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
     return (128.0 + (gray - 128.0) * rng.uniform(0.2, 0.5)).astype(np.float32)
 
 
-def _shrunk(gray: np.ndarray, f: float) -> np.ndarray:
-    """A grey image resized by f (area resampling), at least 1x1: ``dim_copy``'s and ``tiny_dim_copy``'s far face.
-    (Its size is rounded, so its true factor differs from f by up to half a pixel over the width.)"""
+def _shrunk(gray: np.ndarray, f: float) -> tuple[np.ndarray, np.ndarray]:
+    """A grey image resized by about f (area resampling), at least 1x1: ``dim_copy``'s and ``tiny_dim_copy``'s far
+    face. Returns (image, (fx, fy)): its size is rounded, so each axis has its own true factor (new size over old),
+    which may differ from f by half a pixel over the width; a pixel x of the image lands at fx x + (fx - 1) / 2."""
     import cv2
 
     h, w = gray.shape
-    return cv2.resize(gray, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+    size = (max(1, round(w * f)), max(1, round(h * f)))
+    return cv2.resize(gray, size, interpolation=cv2.INTER_AREA), np.array([size[0] / w, size[1] / h])
 
 
 def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
@@ -121,7 +123,7 @@ def dim_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.nd
         f = rng.uniform(25.0, 60.0) / max(eye_px, 1.0)
         if f < 0.9 and rng.random() < 0.7:
             h, w = gray.shape
-            small = _shrunk(gray, f)
+            small = _shrunk(gray, f)[0]
             if rng.random() < 0.5:
                 small = blurred_copy(small, eye_px, (0.02, 0.07), rng, scale=f)
             out = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -145,13 +147,13 @@ def tiny_dim_copy(gray: np.ndarray, box, points: np.ndarray, eye_px: float, rng:
     import cv2
 
     f = rng.uniform(*eye_range) / max(eye_px, 1.0)
-    small = _shrunk(gray, f)
+    small, fxy = _shrunk(gray, f)
     pad_h, pad_w = max(0, min_size[0] - small.shape[0]), max(0, min_size[1] - small.shape[1])
     if pad_h or pad_w:
         small = cv2.copyMakeBorder(small, 0, pad_h, 0, pad_w, cv2.BORDER_REFLECT_101)
-    shift = level_shift(f)
-    sbox = np.array([box[0] * f + shift, box[1] * f + shift, box[2] * f, box[3] * f])
-    return dim_copy(small, eye_px * f, rng), sbox, points * f + shift
+    shift = np.array([level_shift(fxy[0]), level_shift(fxy[1])])
+    sbox = np.r_[np.asarray(box[:2], float) * fxy + shift, np.asarray(box[2:4], float) * fxy]
+    return dim_copy(small, eye_px * f, rng), sbox, points * fxy + shift
 
 
 def noise_frame(shape: tuple, rng: np.random.Generator) -> np.ndarray:

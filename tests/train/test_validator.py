@@ -187,9 +187,12 @@ def test_tiny_dim_copies_shrink_the_face_to_its_far_size_with_its_box_and_points
     for _ in range(12):
         out, sbox, spts = tiny_dim_copy(np.clip(gray, 0, 255), box, points, 400.0, rng)
         assert out.dtype == np.float32 and out.shape[0] >= 240 and out.shape[1] >= 320
-        f = np.linalg.norm(spts[1] - spts[0]) / 400.0
-        assert 10.0 <= 400.0 * f <= 40.0
-        assert np.allclose(sbox[2:], box[2:] * f) and np.allclose(sbox[:2], (box[:2] + 0.5) * f - 0.5)
+        f = (spts[1, 0] - spts[0, 0]) / 400.0  # the copy's true factor across (its height has its own)
+        fy = sbox[3] / box[3]
+        assert 10.0 <= 400.0 * f <= 40.0 and abs(fy - f) <= 0.5 / W + 0.5 / H
+        assert np.allclose(sbox[[0, 2]], [(box[0] + 0.5) * f - 0.5, box[2] * f])
+        assert np.allclose(sbox[1], (box[1] + 0.5) * fy - 0.5)
+        assert np.allclose(spts[:, 1], (points[:, 1] + 0.5) * fy - 0.5)
         x0, y0 = np.round(spts[0]).astype(int)
         r = max(3, int(round(2.5 * 60.0 * f)))
         win = cv2.GaussianBlur(out, (0, 0), 1.0)[y0 - r:y0 + r + 1, x0 - r:x0 + r + 1].astype(np.float64)
@@ -197,6 +200,28 @@ def test_tiny_dim_copies_shrink_the_face_to_its_far_size_with_its_box_and_points
         gy, gx = np.mgrid[y0 - r:y0 + r + 1, x0 - r:x0 + r + 1]
         errs.append(np.hypot((win * gx).sum() / win.sum() - spts[0, 0], (win * gy).sum() / win.sum() - spts[0, 1]))
     assert np.median(errs) < 0.3  # under a third of a pixel (0.15 measured; half a pixel off would read ~0.45)
+
+
+def test_a_shrunk_photo_reports_each_axis_true_factor_so_points_land_on_their_pixels():
+    """``_shrunk`` rounds the image's size, so each axis has its own factor (new size over old); a blob drawn at a
+    point of the photo is found where that factor maps it (noise-free, centroid): what the far faces' labels
+    (``tiny_dim_copy``) are moved by. The factor asked for maps it half a pixel's worth off at this size."""
+
+    from aamtrack.imaging import level_shift
+    from aamtrack.train.validator import _shrunk
+
+    H, W = 810, 1070
+    f = 36.5 / W  # the width rounds from 36.5 to 36 (or 37): the worst case
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    point = np.array([900.0, 700.0])
+    gray = 255.0 * np.exp(-((xx - point[0]) ** 2 + (yy - point[1]) ** 2) / (2 * 40.0 ** 2)).astype(np.float32)
+    small, fxy = _shrunk(gray, f)
+    assert np.allclose(fxy, [small.shape[1] / W, small.shape[0] / H]) and abs(fxy[0] - f) > 0.4 / W
+    gy, gx = np.mgrid[0:small.shape[0], 0:small.shape[1]]
+    found = np.array([(small * gx).sum(), (small * gy).sum()]) / small.sum()
+    at = point * fxy + [level_shift(fxy[0]), level_shift(fxy[1])]
+    assert np.abs(found - at).max() < 0.05  # a twentieth of a pixel (area resampling keeps the centroid)
+    assert np.abs(found - (point * f + level_shift(f))).max() > 0.2  # the factor asked for: off
 
 
 def test_noise_frames_are_grey_noise_of_the_stated_levels():

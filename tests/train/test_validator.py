@@ -206,7 +206,6 @@ def test_a_shrunk_photo_reports_each_axis_true_factor_so_points_land_on_their_pi
     """``_shrunk`` rounds the image's size, so each axis has its own factor (new size over old); a blob drawn at a
     point of the photo is found where that factor maps it (noise-free, centroid): what the far faces' labels
     (``tiny_dim_copy``) are moved by. The factor asked for maps it half a pixel's worth off at this size."""
-
     from aamtrack.imaging import level_shift
     from aamtrack.train.validator import _shrunk
 

@@ -422,10 +422,10 @@ def test_a_still_of_blurred_noise_is_not_fitted():
     5-40, blur 0.5-2.5 px, 640x480 to 1280x720) 5 were fitted on 2026-11-29. Since the dim validator learned from
     far faces at their own scale and from fits on noise where Haar finds "faces" (``TrainConfig.dim_tiny``), and a
     dim fit needs its mirror's agreement (``Tracker.fit_still``), another set of 150 (means 15-180, sd 3-50, blur
-    0-3 px) went from 14 fitted to 2; this one is left: image and mirror fits agree (0.04 eye distances) at
-    confidence 0.89 and 0.90. Texture correlation does not separate such fits (noise 0.19-0.42, helen_test's
-    dim_small faces fitted within NME 0.08: 0.38 at the 5th percentile). Strict: it fails the suite once the
-    defect is fixed, so that the fix removes the mark."""
+    0-3 px) went from 14 fitted to 2 (4 with the models retrained for the far faces' labels); this one is among
+    them: image and mirror fits agree (0.04 eye distances) at confidence 0.89 and 0.90. Texture correlation does not
+    separate such fits (noise 0.19-0.42, helen_test's dim_small faces fitted within NME 0.08: 0.38 at the 5th
+    percentile). Strict: it fails the suite once the defect is fixed, so that the fix removes the mark."""
     from aamtrack.track.replay import ReplayFrame
 
     image = _noise_still(9, 11, ((640, 480), (960, 540)), (30, 120), (10, 40), (0.6, 2.0), colour_every=4)

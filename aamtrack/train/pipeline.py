@@ -893,8 +893,9 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             if v is None:
                 return None, None
             rate = float(np.mean(logit0[y0 < 0.5] >= 0))
-            shift = false_accept_shift(logit[(y < 0.5) & matched], rate)
-            rec = {"false_accepts": rate, "false_accepts_before": float(np.mean(logit[(y < 0.5) & matched] >= 0)),
+            negatives = logit[(y < 0.5) & matched]
+            shift = false_accept_shift(negatives, rate)
+            rec = {"false_accepts": rate, "false_accepts_before": float(np.mean(negatives >= 0)),
                    "false_rejects": float(np.mean(logit[y > 0.5] < shift)), "bias_shift": shift}
             log.info("%s: held out, %.2f%% of negatives accepted before (the landmark validator's %.2f%%), its bias "
                      "lowered by %.2f to match", name, 100 * rec["false_accepts_before"], 100 * rate, shift)

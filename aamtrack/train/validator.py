@@ -151,7 +151,7 @@ def tiny_dim_copy(gray: np.ndarray, box, points: np.ndarray, eye_px: float, rng:
     pad_h, pad_w = max(0, min_size[0] - small.shape[0]), max(0, min_size[1] - small.shape[1])
     if pad_h or pad_w:
         small = cv2.copyMakeBorder(small, 0, pad_h, 0, pad_w, cv2.BORDER_REFLECT_101)
-    shift = np.array([level_shift(fxy[0]), level_shift(fxy[1])])
+    shift = level_shift(fxy)  # per axis
     sbox = np.r_[np.asarray(box[:2], float) * fxy + shift, np.asarray(box[2:4], float) * fxy]
     return dim_copy(small, eye_px * f, rng), sbox, points * fxy + shift
 

@@ -218,7 +218,7 @@ def test_a_shrunk_photo_reports_each_axis_true_factor_so_points_land_on_their_pi
     assert np.allclose(fxy, [small.shape[1] / W, small.shape[0] / H]) and abs(fxy[0] - f) > 0.4 / W
     gy, gx = np.mgrid[0:small.shape[0], 0:small.shape[1]]
     found = np.array([(small * gx).sum(), (small * gy).sum()]) / small.sum()
-    at = point * fxy + [level_shift(fxy[0]), level_shift(fxy[1])]
+    at = point * fxy + level_shift(fxy)
     assert np.abs(found - at).max() < 0.05  # a twentieth of a pixel (area resampling keeps the centroid)
     assert np.abs(found - (point * f + level_shift(f))).max() > 0.2  # the factor asked for: off
 

@@ -111,6 +111,42 @@ def thumbnail(image: np.ndarray) -> np.ndarray:
     return t / norm if norm > 1e-3 else np.zeros_like(t)
 
 
+STRUCTURE_BLOCK = 8  # pixels: ``frame_structure``'s fine blocks
+
+
+def frame_structure(image: np.ndarray) -> float:
+    """How much of a frame's variation is coarse: sqrt(variance of the means of its coarse blocks / variance of
+    the means of its 8 x 8 pixel blocks), grey, the coarse blocks an eighth of the frame's short side (rounded
+    down to whole 8-pixel blocks), over the largest top-left part made of whole coarse blocks; 1 (not judged)
+    for a frame under 256 pixels on its short side, 0 for a uniform one. Noise varies at its own grain only: a
+    coarse block of c pixels averages (c / 8)^2 independent fine ones of white noise, so it gives 8 / c (0.14 at
+    640 x 480, 0.06 at 1920 x 1080), noise blurred by a few pixels a little more; a scene, whose variation is
+    mostly coarse (light, walls, people), much more, whatever the frame's size (the blocks scale with it). The
+    fine blocks average a camera's sensor noise away (its grain is a pixel), so a dark, noisy scene reads its
+    scene. Measured (/tmp harness, 2026-11-30): of 330 noise stills (Gaussian, grey and colour, blurred 0-3 px,
+    and other textures; 640 x 480 to 1280 x 720) 0.08-0.64 (median 0.15; the high ones blurred by 3-8 px), the
+    nine whose fits the dim faces' validator accepted 0.13-0.20; helen_test made small, dark and noisy (the
+    robustness suite's dim_small) 0.35-0.94 (median 0.70); ``benchmarks/hard_clips.py``'s face clips 0.6 or more;
+    cap12's face alone, small, rolled, at 0.12-0.3 of its brightness with noise of 6-12 grey levels in a
+    near-black 960 x 540 frame 0.72-0.86. For ``TrackerConfig.dim_min_structure``; about 0.4 ms for a 640 x 480
+    frame on one core."""
+    H, W = image.shape[:2]
+    f = STRUCTURE_BLOCK
+    c = min(H, W) // 8 // f * f
+    if min(H, W) < 256:
+        return 1.0
+    h, w = H // c * c, W // c * c
+    grey = image[:h, :w]
+    if grey.ndim == 3:
+        grey = cv2.cvtColor(grey, cv2.COLOR_BGRA2GRAY if grey.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    fine = cv2.resize(grey.astype(np.float32), (w // f, h // f), interpolation=cv2.INTER_AREA)
+    var = float(fine.var())
+    if var < 1e-6:
+        return 0.0
+    coarse = fine.reshape(h // c, c // f, w // c, c // f).mean(axis=(1, 3))
+    return math.sqrt(float(coarse.var()) / var)
+
+
 def unsharp(image: np.ndarray, sigma: float, amount: float) -> np.ndarray:
     """``image + amount * (image - G_sigma * image)`` (unsharp masking, Gaussian sigma in pixels), clipped to the
     image's integer range; same shape and dtype (``Tracker.fit_still``'s second look at a soft face)."""

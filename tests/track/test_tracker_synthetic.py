@@ -154,25 +154,26 @@ def test_loss_reasons(synth_model):
     p = np.r_[0.0, 0.0, 0.1, 100.0, 110.0, 110.0, np.zeros(synth_model.n_params - 6)]
     inside = synth_model.shape_prior.mean * 60.0 + 110.0  # the mean labelled shape, eye corners 60 px apart
     good = FitResult(p=p, landmarks=inside, vertices=inside, residual=0.1, confidence=0.9)
-    assert tracker.loss_reason(good, (220, 220), p) == ""
+    frame = np.zeros((220, 220), np.uint8)  # (a frame's size is all these checks read of it)
+    assert tracker.loss_reason(good, frame, p) == ""
     assert "low confidence" in tracker.loss_reason(replace(good, confidence=cfg.min_confidence - 0.01),
-                                                   (220, 220), p)
+                                                   frame, p)
     outside = inside.copy()
     outside[: int(0.4 * 68), 0] = -5.0  # 40% of the points left of the frame
-    assert "inside the frame" in tracker.loss_reason(replace(good, landmarks=outside), (220, 220), p)
+    assert "inside the frame" in tracker.loss_reason(replace(good, landmarks=outside), frame, p)
     turned = p.copy()
     turned[1] += cfg.max_turn + 0.05
-    assert "turned" in tracker.loss_reason(replace(good, p=turned), (220, 220), p)
-    assert tracker.loss_reason(replace(good, p=turned), (220, 220), None) == ""  # no previous frame: no jump test
+    assert "turned" in tracker.loss_reason(replace(good, p=turned), frame, p)
+    assert tracker.loss_reason(replace(good, p=turned), frame, None) == ""  # no previous frame: no jump test
     grown = p.copy()
     grown[3] *= np.exp(cfg.max_rescale + 0.05)
-    assert "rescaled" in tracker.loss_reason(replace(good, p=grown), (220, 220), p)
+    assert "rescaled" in tracker.loss_reason(replace(good, p=grown), frame, p)
     collapsed = inside.copy()
     collapsed[48:68, 1] -= 0.6 * (collapsed[48:68, 1].mean() - collapsed[30:36, 1].mean())  # the mouth half-way up
     collapsed[4:13, 1] -= 0.3 * (collapsed[4:13, 1] - collapsed[30, 1]).clip(0)  # the chin with it
-    assert "implausible face shape" in tracker.loss_reason(replace(good, landmarks=collapsed), (220, 220), p)
+    assert "implausible face shape" in tracker.loss_reason(replace(good, landmarks=collapsed), frame, p)
     off = Tracker(synth_model, config=replace(cfg, max_shape_score=0.0))
-    assert off.loss_reason(replace(good, landmarks=collapsed), (220, 220), p) == ""
+    assert off.loss_reason(replace(good, landmarks=collapsed), frame, p) == ""
 
 
 def test_upright_detection_of_low_confidence_also_tries_the_turned_frames(synth_model):
@@ -514,6 +515,30 @@ def test_thumbnail_is_a_normalised_grey_miniature():
 
     assert np.array_equal(thumbnail(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)), t)  # a grey frame: the same bits
     assert np.array_equal(thumbnail(cv2.cvtColor(frame, cv2.COLOR_BGR2BGRA)), t)  # BGRA too
+
+
+def test_frame_structure_reads_noise_at_its_grain_and_a_scene_as_coarse():
+    """``imaging.frame_structure``: white noise gives 8 / c for coarse blocks of c pixels (an eighth of the short
+    side in whole 8-pixel blocks: 56 at 640 x 480, 128 at 1920 x 1080), to the sampling error of 70 or 128 block
+    means (measured 0.14 and 0.06); noise blurred by 2 px stays under ``TrackerConfig.dim_min_structure``; a scene
+    made of coarse light (a field blurred by 40 px, sd 10 grey levels) reads it through sensor noise of twice its
+    sd, and dark (x 0.2); a uniform frame gives 0, a frame under 256 px a side is not judged (1)."""
+    import cv2
+
+    from aamtrack.imaging import frame_structure
+
+    rng = np.random.default_rng(7)
+    for (h, w), c in (((480, 640), 56), ((1080, 1920), 128)):
+        white = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        assert abs(frame_structure(white) - 8 / c) < 0.3 * 8 / c  # sampling error of the block means
+    blurred = cv2.GaussianBlur(rng.normal(100, 30, (480, 640)), (0, 0), 2.0)
+    assert frame_structure(np.clip(blurred, 0, 255).astype(np.uint8)) < TrackerConfig().dim_min_structure
+    field = cv2.GaussianBlur(rng.normal(0, 1, (480, 640)), (0, 0), 40.0)
+    scene = 0.2 * (120 + 10 * field / field.std())
+    noisy = np.clip(scene + rng.normal(0, 4.0, scene.shape), 0, 255).astype(np.uint8)  # sensor noise: 2 x its sd
+    assert frame_structure(noisy) > 2 * TrackerConfig().dim_min_structure
+    assert frame_structure(np.full((480, 640, 3), 40, np.uint8)) == 0.0
+    assert frame_structure(rng.integers(0, 256, (240, 320), dtype=np.uint8)) == 1.0
 
 
 def cv2_blur(img):
@@ -1010,15 +1035,15 @@ def test_a_dim_fit_needs_less_confidence_only_where_a_face_just_was(synth_model)
     assert cfg.dim_tracked_min < 0.3 < cfg.min_confidence
     images, _ = synth.random_faces(1, np.random.default_rng(SEED + 41), size=(220, 220), scale=130.0)
     res, _ = tracker.detect_and_fit(images[0])
-    assert res is not None and not tracker.loss_reason(res, (220, 220), None)
+    assert res is not None and not tracker.loss_reason(res, images[0], None)
     dim = replace(res, confidence=0.3, dim=True)
     clear = replace(res, confidence=0.3, dim=False)
-    shape = (220, 220)
-    assert tracker.loss_reason(dim, shape, None).startswith("low confidence")  # a fresh detection
-    assert tracker.loss_reason(dim, shape, res.p) == ""  # following the previous frame
-    assert tracker.loss_reason(dim, shape, None, near=True) == ""  # where a face was a moment ago
-    assert tracker.loss_reason(clear, shape, res.p).startswith("low confidence")  # clear faces: as before
-    assert tracker.loss_reason(replace(dim, confidence=0.1), shape, res.p).startswith("low confidence")
+    frame = images[0]  # (under 256 px a side: no structure judged, ``frame_structure``)
+    assert tracker.loss_reason(dim, frame, None).startswith("low confidence")  # a fresh detection
+    assert tracker.loss_reason(dim, frame, res.p) == ""  # following the previous frame
+    assert tracker.loss_reason(dim, frame, None, near=True) == ""  # where a face was a moment ago
+    assert tracker.loss_reason(clear, frame, res.p).startswith("low confidence")  # clear faces: as before
+    assert tracker.loss_reason(replace(dim, confidence=0.1), frame, res.p).startswith("low confidence")
     width = res.p[3] * tracker.searcher.width
     moved = res.p.copy()
     assert tracker._near(moved, res.p)
@@ -1032,6 +1057,34 @@ def test_a_dim_fit_needs_less_confidence_only_where_a_face_just_was(synth_model)
     turned = res.p.copy()
     turned[2] += 0.5
     assert not tracker._near(turned, res.p)
+
+
+def test_a_dim_fit_in_a_frame_of_noise_is_refused(synth_model):
+    """``TrackerConfig.dim_min_structure``: a fit judged by the dim faces' validator is refused in a frame whose
+    variation is all at the grain of noise (``imaging.frame_structure``), whatever its confidence and even where a
+    face just was; in a frame with a scene in it it stands, as does a clear face's fit in the noise frame (the
+    check is for dim fits: their validator is the one noise fooled); 0 turns the check off."""
+    import cv2
+
+    from aamtrack.imaging import frame_structure
+
+    tracker = Tracker(synth_model)
+    images, _ = synth.random_faces(1, np.random.default_rng(SEED + 41), size=(220, 220), scale=130.0)
+    res, _ = tracker.detect_and_fit(images[0])
+    rng = np.random.default_rng(SEED + 42)
+    noise = np.clip(cv2.GaussianBlur(rng.normal(90, 30, (480, 640)), (0, 0), 1.5), 0, 255).astype(np.uint8)
+    scene = np.clip(cv2.GaussianBlur(rng.normal(90, 30, (480, 640)), (0, 0), 40.0) * 20, 0, 255)
+    scene = np.clip(scene - scene.mean() + 90 + rng.normal(0, 8, scene.shape), 0, 255).astype(np.uint8)
+    scene[:220, :220] = images[0][..., 0] if images[0].ndim == 3 else images[0]  # the face in a corner
+    assert frame_structure(noise) < tracker.config.dim_min_structure < frame_structure(scene)
+    dim = replace(res, confidence=0.95, dim=True)
+    for p_before, near in ((None, False), (res.p, False), (None, True)):
+        assert tracker.loss_reason(dim, noise, p_before, near=near).startswith("a dim fit in a frame that looks "
+                                                                               "like noise")
+        assert tracker.loss_reason(dim, scene, p_before, near=near) == ""
+    assert tracker.loss_reason(replace(dim, dim=False), noise, None) == ""
+    off = Tracker(synth_model, config=replace(tracker.config, dim_min_structure=0.0))
+    assert off.loss_reason(dim, noise, None) == ""
 
 
 def test_a_soft_track_searches_with_the_soft_couples(synth_model):

@@ -92,6 +92,14 @@ def crop_gray32(image: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.nda
     return to_gray32(image[y0:y1, x0:x1])
 
 
+def grey_u8(image: np.ndarray) -> np.ndarray:
+    """A grey, BGR or BGRA frame as grey levels of its own dtype (a grey frame as it is): what ``thumbnail`` and
+    ``frame_structure`` read."""
+    if image.ndim == 2:
+        return image
+    return cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+
+
 THUMBNAIL_SIZE = (32, 24)
 
 
@@ -102,9 +110,8 @@ def thumbnail(image: np.ndarray) -> np.ndarray:
     0.05 ms at any frame size on one core; area resizing of the whole frame would take 0.2 ms at 640x480."""
     H, W = image.shape[:2]
     step = max(1, min(H, W) // 64)
-    small = np.ascontiguousarray(image[::step, ::step])
-    if small.ndim == 3:  # grey per pixel before resizing: a grey frame and its BGR original give the same bits
-        small = cv2.cvtColor(small, cv2.COLOR_BGRA2GRAY if small.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    # grey per pixel before resizing: a grey frame and its BGR original give the same bits
+    small = grey_u8(np.ascontiguousarray(image[::step, ::step]))
     t = cv2.resize(small, THUMBNAIL_SIZE, interpolation=cv2.INTER_AREA).astype(np.float32)
     t -= t.mean()
     norm = float(np.linalg.norm(t))
@@ -131,15 +138,12 @@ def frame_structure(image: np.ndarray) -> float:
     near-black 960 x 540 frame 0.72-0.86. For ``TrackerConfig.dim_min_structure``; about 0.4 ms for a 640 x 480
     frame on one core."""
     H, W = image.shape[:2]
-    f = STRUCTURE_BLOCK
-    c = min(H, W) // 8 // f * f
     if min(H, W) < 256:
         return 1.0
+    f = STRUCTURE_BLOCK
+    c = min(H, W) // 8 // f * f
     h, w = H // c * c, W // c * c
-    grey = image[:h, :w]
-    if grey.ndim == 3:
-        grey = cv2.cvtColor(grey, cv2.COLOR_BGRA2GRAY if grey.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
-    fine = cv2.resize(grey.astype(np.float32), (w // f, h // f), interpolation=cv2.INTER_AREA)
+    fine = cv2.resize(grey_u8(image[:h, :w]).astype(np.float32), (w // f, h // f), interpolation=cv2.INTER_AREA)
     var = float(fine.var())
     if var < 1e-6:
         return 0.0

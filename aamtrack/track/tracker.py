@@ -350,7 +350,6 @@ class Tracker:
         self.config = config
         self.searcher = Searcher(model)
         self._still = False  # inside ``fit_still`` (``fit_roi``)
-        self._structure_of: tuple | None = None  # (frame, its ``frame_structure``): ``_structure``
         self.detector = detector or HaarDetector()
         self.mm_per_unit = model.shape.mm_per_unit()
         self._landmark_fitter = LandmarkFitter(model.shape)
@@ -626,7 +625,7 @@ class Tracker:
         least = cfg.dim_tracked_min if (p_before is not None or near) and res.dim else cfg.min_confidence
         if res.confidence < least:
             return f"low confidence {res.confidence:.2f} < {least:.2f}"
-        if res.dim and cfg.dim_min_structure > 0 and (structure := self._structure(image)) < cfg.dim_min_structure:
+        if res.dim and cfg.dim_min_structure > 0 and (structure := frame_structure(image)) < cfg.dim_min_structure:
             return f"a dim fit in a frame that looks like noise (structure {structure:.2f})"
         shape = image.shape[:2]
         inside = self._inside(res.landmarks, shape)
@@ -644,14 +643,6 @@ class Tracker:
             if score > cfg.max_shape_score:
                 return f"implausible face shape ({score:.2f} > {cfg.max_shape_score:.2f})"
         return ""
-
-    def _structure(self, image: np.ndarray) -> float:
-        """``imaging.frame_structure`` of the frame ``image``, kept for the frame last asked about (forgotten at
-        each new frame of ``track`` and each ``fit_still``, so that a frame handed in the same array as the one
-        before is measured afresh)."""
-        if self._structure_of is None or self._structure_of[0] is not image:
-            self._structure_of = (image, frame_structure(image))
-        return self._structure_of[1]
 
     def _second_look(self, image: np.ndarray, res: FitResult, shape_params, timings: dict) -> tuple:
         """An accepted tracked fit res whose points score above ``shape_recheck_above`` as a face shape
@@ -774,7 +765,6 @@ class Tracker:
         if frame.image is None:
             return next(iter(self.track([frame])))
         self._still = True  # its fits of a dim face take the model's cascade for those (``fit_roi``)
-        self._structure_of = None
         try:
             res, fit = self._fit_still(frame, mirror, agree, agree_dim)
             cfg = self.config
@@ -903,7 +893,6 @@ class Tracker:
         after = fit
         for i in range(len(held) - 1, -1, -1):
             res, frame = held[i]
-            self._structure_of = None
             t0 = time.perf_counter()
             got, t_pyr = self.search_from(frame.image, self.tracked_start(after), shape_params, soft=after.soft,
                                           dim=after.dim, margin=cfg.roi_margin_tracked)
@@ -933,7 +922,6 @@ class Tracker:
         recent = None     # (search vector, n_fitted then) of the shot's last accepted fit
         n_fitted = 0      # frames that had a fit, accepted or not (``dim_recent`` counts these)
         for frame in frames:
-            self._structure_of = None  # (a reader may hand each frame in the same array)
             if getattr(frame, "dropped", False):
                 yield FrameResult(frame=frame.index, timestamp=frame.timestamp, status="dropped"), None, frame, None, \
                     False

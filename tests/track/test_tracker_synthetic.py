@@ -1075,7 +1075,7 @@ def test_a_dim_fit_in_a_frame_of_noise_is_refused(synth_model):
     noise = np.clip(cv2.GaussianBlur(rng.normal(90, 30, (480, 640)), (0, 0), 1.5), 0, 255).astype(np.uint8)
     scene = np.clip(cv2.GaussianBlur(rng.normal(90, 30, (480, 640)), (0, 0), 40.0) * 20, 0, 255)
     scene = np.clip(scene - scene.mean() + 90 + rng.normal(0, 8, scene.shape), 0, 255).astype(np.uint8)
-    scene[:220, :220] = images[0][..., 0] if images[0].ndim == 3 else images[0]  # the face in a corner
+    scene[:220, :220] = images[0]  # the face (grey) in a corner
     assert frame_structure(noise) < tracker.config.dim_min_structure < frame_structure(scene)
     dim = replace(res, confidence=0.95, dim=True)
     for p_before, near in ((None, False), (res.p, False), (None, True)):

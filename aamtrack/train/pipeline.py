@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import asdict, dataclass, field, replace
+from itertools import islice
 from typing import Callable, Iterable
 
 import cv2
@@ -39,7 +40,7 @@ from .texture import learn_appearance, sample_texture
 from .update import perturbation_steps, prior_weights, update_matrix
 from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
                         landmark_validator_fit, logistic_fit, non_face_images, occluded_copy, soft_copy,
-                        noise_frame, tiny_dim_copy)
+                        noise_frame, textured_noise, tiny_dim_copy)
 
 log = logging.getLogger(__name__)
 
@@ -186,6 +187,11 @@ class TrainConfig:
     searches give on noise. These samples are left out of the false-accept matching (``held_out_logits``; the
     landmark validator never sees their kinds). Learned without them, the validator accepted fits of blurred
     noise at 13-30 px between the eyes: ``aamtrack fit`` fitted 14 of 150 noise stills (/tmp, 2026-11-30).
+    textured: the landmark validator also learns, from every this-many-th photo (0: none), from the fits at up to
+    three of Haar's upright boxes (as ``HaarDetector.find`` and ``more`` give them) on a frame of blotchy or
+    cloudy noise the photo's size (``train.validator.textured_noise``): hard negatives, left out of the
+    false-accept matching like the dim ones. Learned without them, the validator accepted fits there: ``aamtrack
+    fit`` fitted 4 of 20 blotchy noise stills (/tmp, 2026-11-30), where Haar finds a "face" in 19.
     shape_prior_variance: the shape prior (``Model.shape_prior``, ``train.shape_prior``) keeps the modes of the
     labelled shapes (training images and mirrors) that explain this share of their variance (0: no prior)."""
 
@@ -233,6 +239,7 @@ class TrainConfig:
     soft_validator: bool = True
     dim_cascade: float = 2.0
     dim_tiny: int = 2
+    textured: int = 4
     shape_prior_variance: float = 0.97
     seed: int = 0
 
@@ -625,10 +632,11 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     the soft landmark cascade took them (as ``Model.validator_for`` hands them to it), and from non-face images
     with a blurred one among them.
     The validator for dim faces also learns from far faces at their own scale and Haar's weakest hits on noise
-    (``TrainConfig.dim_tiny``: ``tiny_dim_copy``, ``noise_frame``).
+    (``TrainConfig.dim_tiny``: ``tiny_dim_copy``, ``noise_frame``); the landmark validator from Haar's boxes on
+    textured noise (``TrainConfig.textured``: ``textured_noise``).
     Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else
-    None, whether each counts in matching the landmark validator's false accepts: all but the far faces' and the
-    noise frames' fits, kinds the landmark validator never sees)."""
+    None, whether each counts in matching the landmark validator's false accepts: all but the far faces', the
+    noise frames' and the textured noise's fits, kinds only one of the validators sees)."""
     searcher = Searcher(model)
     sm, lc = model.shape, model.landmark_cascade
     S, Z, y, matched = [], [], [], []
@@ -663,6 +671,8 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     # Haar's weakest hits on noise (one neighbour): a box on 21 of 40 noise frames in this search, none with the
     # tracker's four; the patches that look most like a face to it
     haar = HaarDetector(min_neighbors=1) if dim_below > 0 and config.dim_tiny > 0 else None
+    textured = config.textured if dim_below <= 0 and not soft else 0
+    tex_rng, tex_haar = np.random.default_rng(config.seed + 14), HaarDetector() if textured else None
     for i in range(n_orig):
         truth = pts[i]
         eye = float(np.linalg.norm(truth[45] - truth[36]))
@@ -704,6 +714,11 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
             add(Levels(img, model.features), start(box), truth_s, False)
             noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
             for box in haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2]:
+                add(Levels(noise, model.features), start(box), None, False)
+        if textured and i % textured == 0:  # where Haar finds "faces" in blotches and clouds: hard negatives
+            noise = textured_noise(gray[i].shape, tex_rng)
+            first = list(tex_haar.detect_all(noise)[:1])
+            for box in first + list(islice(tex_haar.more(noise, first), 2)):
                 add(Levels(noise, model.features), start(box), None, False)
     y = np.array(y)
     name = "validator for dim faces" if dim_below > 0 else "validator for soft faces" if soft else \
@@ -885,14 +900,14 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                             soft_above=soft_above, dim_cascade=dim_cascade)
         dim = config.dim_validator > 0
         soft_val = config.soft_validator and soft_cascade is not None
-        landmark_validator, y0, logit0, _ = _landmark_validator(lmk_model, gray, pts, P, boxes, box_points, n_orig,
-                                                                np.random.default_rng(config.seed + 5), config,
-                                                                held_out=dim or soft_val)
+        landmark_validator, y0, logit0, matched0 = _landmark_validator(
+            lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 5), config,
+            held_out=dim or soft_val)
 
         def as_wary(v, y, logit, matched, name):  # as wary of non-faces as the landmark validator, held out
             if v is None:
                 return None, None
-            rate = float(np.mean(logit0[y0 < 0.5] >= 0))
+            rate = float(np.mean(logit0[(y0 < 0.5) & matched0] >= 0))
             negatives = logit[(y < 0.5) & matched]
             shift = false_accept_shift(negatives, rate)
             rec = {"false_accepts": rate, "false_accepts_before": float(np.mean(negatives >= 0)),

@@ -168,6 +168,24 @@ def noise_frame(shape: tuple, rng: np.random.Generator) -> np.ndarray:
     return np.clip(noise, 0, 255).astype(np.float32)
 
 
+def textured_noise(shape: tuple, rng: np.random.Generator) -> np.ndarray:
+    """A grey (H, W) float32 frame of texture with no face for the landmark validator: Gaussian noise blurred by
+    3-8 px (blotches), or, one time in three, a sum of such noise at scales 1 to 32 px each weighted by its scale
+    (1/f-like, clouds), stretched to a spread of 5-40 grey levels about a mean of 40-160. Haar finds "faces" in
+    most such frames (19 of 20 blotchy 640x480 to 1280x720 frames), and before the landmark validator learned from
+    its fits there ``aamtrack fit`` fitted 4 of 20 blotchy stills, judged clear faces (/tmp, 2026-11-30)."""
+    import cv2
+
+    if rng.random() < 1 / 3:
+        im = np.zeros(shape)
+        for s in (1, 2, 4, 8, 16, 32):
+            im += s * cv2.GaussianBlur(rng.normal(0.0, 1.0, shape), (0, 0), s)
+    else:
+        im = cv2.GaussianBlur(rng.normal(0.0, 1.0, shape), (0, 0), rng.uniform(3.0, 8.0))
+    im = rng.uniform(40.0, 160.0) + im / max(float(im.std()), 1e-9) * rng.uniform(5.0, 40.0)
+    return np.clip(im, 0, 255).astype(np.float32)
+
+
 def soft_copy(gray: np.ndarray, eye_px: float, rng: np.random.Generator) -> np.ndarray:
     """A blurred copy of a grey (H, W) float32 image for the validator of soft faces (``Model.soft_validator``):
     Gaussian blur of sigma 0.02-0.08 outer eye-corner distances (``eye_px``), the range the soft couples and soft

@@ -233,3 +233,18 @@ def test_noise_frames_are_grey_noise_of_the_stated_levels():
         n = noise_frame((120, 160), rng)
         assert n.shape == (120, 160) and n.dtype == np.float32 and n.min() >= 0 and n.max() <= 255
         assert 15 < n.mean() < 165 and 0.5 < n.std() < 42
+
+
+def test_textured_noise_is_blotchy_at_the_stated_levels():
+    """``textured_noise``: float32 of the shape within 0-255, mean 40-160 and spread 5-40 grey levels before
+    clipping (clipping only narrows them), and coarse: neighbouring pixels nearly equal (blurred by 3 px or more,
+    or mostly the coarse octaves), unlike white noise of the same spread."""
+    from aamtrack.train.validator import textured_noise
+
+    rng = np.random.default_rng(SEED)
+    for _ in range(30):
+        n = textured_noise((120, 160), rng)
+        assert n.shape == (120, 160) and n.dtype == np.float32 and n.min() >= 0 and n.max() <= 255
+        assert 30 < n.mean() < 170 and 2 < n.std() < 41
+        step = np.diff(n, axis=1).std() / n.std()  # white noise: sqrt(2) = 1.41
+        assert step < 0.6, step

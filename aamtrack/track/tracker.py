@@ -279,9 +279,10 @@ class TrackerConfig:
     The faces of the robustness suite (helen_test and cap12 under each of its variants) and ``hard_clips.py``
     read 0.35 or more but for small30_hd's (a small photo in a flat grey 1920 x 1080 frame: its variation is finer
     than the frame's eighth; 133 of 330 below 0.25), whose fits are not judged dim. A known blind spot: a dense
-    crowd of very small faces varies at the faces' grain too (mosaics of helen_test faces in tiles of 40-60 px at
-    1280 x 720 and 1920 x 1080, about 15-20 px between the eyes, read 0.16-0.22; tiles of 60-90 px at 640 x 480 to
-    1280 x 720 read 0.25-0.49), so a dim fit of one such face is refused. A frame under 256 pixels on a
+    crowd of very small faces varies at the faces' grain too (mosaics of helen_test faces, each tile 1.6 face
+    widths: tiles of 40 px at 1280 x 720 and 45-60 px at 1920 x 1080, about 12-19 px between the eyes, read
+    0.16-0.22; tiles of 45-90 px at 640 x 480 to 1280 x 720 read 0.25-0.49), so a dim fit of one such face is
+    refused. A frame under 256 pixels on a
     side is not judged. Cost: only on frames with a dim fit, about 0.4 ms at 640 x 480.
     backfill: a stretch of lost frames that ends in a detection is tracked backwards from it, frame by frame
     (each searched from the next one's fit as a tracked frame is from the previous one's, and judged the same way,

@@ -453,6 +453,7 @@ def _blotchy_still(index: int, seed: int = 21) -> np.ndarray:
     blotches, two scales of blotches mixed) take draws too, so every still before it is drawn as the set drew it."""
     import cv2
 
+    assert index % 4 == 0, "only the isotropic kind is kept here"
     rng = np.random.default_rng(seed)
     for k in range(index + 1):
         W, H = [(640, 480), (960, 540), (1280, 720), (800, 600)][k % 4]
@@ -469,7 +470,6 @@ def _blotchy_still(index: int, seed: int = 21) -> np.ndarray:
             im = (cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), a)
                   + 3 * cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), b) * b / a)
         im = rng.uniform(30, 170) + im / im.std() * rng.uniform(4, 45)
-    assert index % 4 == 0, "only the isotropic kind is kept here"
     return np.clip(im, 0, 255).astype(np.uint8)
 
 

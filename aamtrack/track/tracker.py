@@ -282,8 +282,8 @@ class TrackerConfig:
     crowd of very small faces varies at the faces' grain too (mosaics of helen_test faces, each tile 1.6 face
     widths: tiles of 40 px at 1280 x 720 and 45-60 px at 1920 x 1080, about 12-19 px between the eyes, read
     0.16-0.22; tiles of 45-90 px at 640 x 480 to 1280 x 720 read 0.25-0.49), so a dim fit of one such face is
-    refused. A frame under 256 pixels on a
-    side is not judged. Cost: only on frames with a dim fit, about 0.4 ms at 640 x 480.
+    refused. A frame under 256 pixels on a side is not judged. Cost: only on frames with a dim fit, about 0.4 ms
+    at 640 x 480.
     backfill: a stretch of lost frames that ends in a detection is tracked backwards from it, frame by frame
     (each searched from the next one's fit as a tracked frame is from the previous one's, and judged the same way,
     ``loss_reason``), until a fit is refused; those frames' results wait for it, at most this many (0: none), and

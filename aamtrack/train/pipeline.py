@@ -188,7 +188,7 @@ class TrainConfig:
     landmark validator never sees their kinds). Learned without them, the validator accepted fits of blurred
     noise at 13-30 px between the eyes: ``aamtrack fit`` fitted 14 of 150 noise stills (/tmp, 2026-11-30).
     textured: the landmark validator also learns, from every this-many-th photo (0: none), from the fits at up to
-    three of Haar's upright boxes (as ``HaarDetector.find`` and ``more`` give them) on a frame of blotchy or
+    three of Haar's upright boxes (the plain search's largest, then ``HaarDetector.more``'s) on a frame of blotchy or
     cloudy noise the photo's size (``train.validator.textured_noise``): hard negatives, left out of the
     false-accept matching like the dim ones. Learned without them, the validator accepted fits there: ``aamtrack
     fit`` fitted 4 of 20 blotchy noise stills (/tmp, 2026-11-30), where Haar finds a "face" in 19. With them, of

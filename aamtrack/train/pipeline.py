@@ -669,6 +669,10 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         p0[2] += roll
         return p0
 
+    def on_non_face(image, at, match=True):  # fits from each box of ``at`` in a frame with no face: negatives
+        for box in at:  # (a fresh ``Levels`` per box, as the shipped models were trained: one shared would
+            add(Levels(image, model.features), start(box), None, match)  # resample in another order)
+
     tiny_rng = np.random.default_rng(config.seed + 13)  # its own draws: the other samples stay as they were
     # Haar's weakest hits on noise (one neighbour): a box on 21 of 40 noise frames in this search, none with the
     # tracker's four; the patches that look most like a face to it
@@ -710,18 +714,16 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
             if soft:
                 blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
             for blank in blanks:
-                add(Levels(blank, model.features), start(boxes[i]), None)
+                on_non_face(blank, [boxes[i]])
         if dim_below > 0 and config.dim_tiny > 0 and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
             img, box, truth_s = tiny_dim_copy(gray[i], boxes[i], truth, eye, tiny_rng)
             add(Levels(img, model.features), start(box), truth_s, False)
             noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
-            for box in haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2]:
-                add(Levels(noise, model.features), start(box), None, False)
+            on_non_face(noise, haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2], False)
         if textured and i % textured == 0:  # where Haar finds "faces" in blotches and clouds: hard negatives
             noise = textured_noise(gray[i].shape, tex_rng)
             first = list(tex_haar.detect_all(noise)[:1])
-            for box in first + list(islice(tex_haar.more(noise, first), 2)):
-                add(Levels(noise, model.features), start(box), None, False)
+            on_non_face(noise, first + list(islice(tex_haar.more(noise, first), 2)), False)
     y = np.array(y)
     name = "validator for dim faces" if dim_below > 0 else "validator for soft faces" if soft else \
         "landmark validator"

@@ -455,21 +455,22 @@ def _blotchy_still(index: int, seed: int = 21) -> np.ndarray:
 
     assert index % 4 == 0, "only the isotropic kind is kept here"
     rng = np.random.default_rng(seed)
-    for k in range(index + 1):
+    for k in range(index + 1):  # the noise of every still before it is drawn (blurred only for the one kept)
         W, H = [(640, 480), (960, 540), (1280, 720), (800, 600)][k % 4]
         kind = k % 4
         if kind == 0:
-            im = cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), rng.uniform(2, 10))
+            im, blur = rng.normal(0, 1, (H, W)), rng.uniform(2, 10)
+            if k == index:
+                im = cv2.GaussianBlur(im, (0, 0), blur)
         elif kind == 1:
-            im = cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), sigmaX=rng.uniform(1.5, 10),
-                                  sigmaY=rng.uniform(1.5, 10))
+            rng.normal(0, 1, (H, W)), rng.uniform(1.5, 10), rng.uniform(1.5, 10)
         elif kind == 2:
-            im = np.dstack([cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), rng.uniform(2, 8)) for _ in range(3)])
+            for _ in range(3):
+                rng.normal(0, 1, (H, W)), rng.uniform(2, 8)
         else:
-            a, b = rng.uniform(1, 3), rng.uniform(6, 20)
-            im = (cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), a)
-                  + 3 * cv2.GaussianBlur(rng.normal(0, 1, (H, W)), (0, 0), b) * b / a)
-        im = rng.uniform(30, 170) + im / im.std() * rng.uniform(4, 45)
+            rng.uniform(1, 3), rng.uniform(6, 20), rng.normal(0, 1, (H, W)), rng.normal(0, 1, (H, W))
+        mean, spread = rng.uniform(30, 170), rng.uniform(4, 45)
+    im = mean + im / im.std() * spread
     return np.clip(im, 0, 255).astype(np.uint8)
 
 
@@ -484,3 +485,18 @@ def test_a_still_of_blotchy_noise_is_not_fitted():
     image = _blotchy_still(0)
     result = Tracker(load_model(default_model_path("3d"))).fit_still(ReplayFrame(0, 0.0, image))
     assert not result.success, f"fitted at confidence {result.confidence:.2f}"
+
+
+def test_a_still_of_blotches_taken_for_a_blurred_face_is_not_fitted():
+    """Blotches look like a blurred face: in this still (the same held-out set, 640x480, grey) the soft landmark
+    cascade, the one for blurred faces, took Haar's "face", and the validator for soft faces accepted the fit
+    (confidence 0.78): it had learned from blurred faces and non-face images but not from textured noise, which
+    only the landmark validator had seen. Since both learn from it (``TrainConfig.textured``) the fit is refused
+    by its confidence. Not every such still is: 8 of the set's 120 are still fitted (benchmarks/README.md,
+    "Textured noise")."""
+    from aamtrack.track.replay import ReplayFrame
+
+    image = _blotchy_still(112)
+    result = Tracker(load_model(default_model_path("3d"))).fit_still(ReplayFrame(0, 0.0, image))
+    assert not result.success, f"fitted at confidence {result.confidence:.2f}"
+    assert result.reason.startswith("low confidence"), result.reason  # refused by the validator, not unseen

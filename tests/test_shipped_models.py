@@ -487,16 +487,18 @@ def test_a_still_of_blotchy_noise_is_not_fitted():
     assert not result.success, f"fitted at confidence {result.confidence:.2f}"
 
 
-def test_a_still_of_blotches_taken_for_a_blurred_face_is_not_fitted():
-    """Blotches look like a blurred face: in this still (the same held-out set, 640x480, grey) the soft landmark
-    cascade, the one for blurred faces, took Haar's "face", and the validator for soft faces accepted the fit
-    (confidence 0.78): it had learned from blurred faces and non-face images but not from textured noise, which
-    only the landmark validator had seen. Since both learn from it (``TrainConfig.textured``) the fit is refused
-    by its confidence. Not every such still is: 8 of the set's 120 are still fitted (benchmarks/README.md,
-    "Textured noise")."""
+@pytest.mark.parametrize("index", [28, 44, 52, 60, 88, 112])
+def test_a_still_of_blotches_taken_for_a_blurred_face_is_not_fitted(index):
+    """Blotches look like a blurred face: in these stills (the same held-out set, grey, 640x480) the
+    soft landmark cascade, the one for blurred faces, took Haar's "face", and the validator for soft faces
+    accepted the fit (112 at confidence 0.78 until the forty-seventh session; the others, its model's 8 of 120,
+    until the forty-eighth): it had learned from blurred faces and non-face images but not from textured noise
+    (``TrainConfig.textured``), then from one photo in four's textured frame at a few of Haar's strongest boxes.
+    Since both validators learn from every photo's frame at Haar's weakest hits too, the fit is refused by its
+    confidence (the shipped 3D model fits none of the set's 120: benchmarks/README.md, "Textured noise")."""
     from aamtrack.track.replay import ReplayFrame
 
-    image = _blotchy_still(112)
+    image = _blotchy_still(index)
     result = Tracker(load_model(default_model_path("3d"))).fit_still(ReplayFrame(0, 0.0, image))
     assert not result.success, f"fitted at confidence {result.confidence:.2f}"
     assert result.reason.startswith("low confidence"), result.reason  # the validator refused it (Haar did give a box)

@@ -265,8 +265,8 @@ class TrackerConfig:
     the previous frame (a tracked frame), or when it lies where a fit was accepted at most ``dim_recent`` fitted
     frames before in the same shot (frames where no face was found to fit do not count; centres within ``dim_near``
     face widths, size and pose within ``max_rescale`` and ``max_turn``: ``Tracker._near``). That validator's bias
-    was lowered until it accepts no more non-faces than the landmark validator (held out, 0.75%), at the cost of 13%
-    of good dim fits held out; a face that was just there is most likely still there. cap12 shrunk to 45 px between
+    was lowered until it accepts no more held-out non-faces than about the landmark validator does (0.7%,
+    ``TrainConfig.wary_rate``), at the cost of 12% of good dim fits held out; a face that was just there is most likely still there. cap12 shrunk to 45 px between
     the eyes, dark and noisy (the robustness suite's dim_small, 3D): tracked 88.7% -> 95.9%, NME 0.0329 -> 0.0327;
     its lost frames' fits had NME 0.035-0.06 at confidences 0.07-0.45. Frames of a shot with no accepted fit, and
     clear faces, still need ``min_confidence``; a cut (``cut_below``) forgets the recent fit.

@@ -248,3 +248,26 @@ def test_textured_noise_is_blotchy_at_the_stated_levels():
         assert 30 < n.mean() < 170 and 2 < n.std() < 41
         step = np.diff(n, axis=1).std() / n.std()  # white noise: sqrt(2) = 1.41
         assert step < 0.6, step
+
+
+def test_textured_negatives_give_each_photo_the_same_frame_whichever_validator_asks_first():
+    """``TexturedNegatives``: a photo's frame comes from its own seed (the landmark validator and the validator for
+    soft faces ask in their own orders and must see the same frames), Haar's boxes on it are found once and lie in
+    the frame, at most ``textured_boxes`` of them, largest first; another photo gets another frame."""
+    from aamtrack.train.pipeline import TexturedNegatives, TrainConfig
+
+    shapes = [(240, 200), (200, 240), (240, 240)] * 4
+    a, b = TexturedNegatives(TrainConfig(), shapes), TexturedNegatives(TrainConfig(), shapes)
+    order = np.random.default_rng(SEED).permutation(len(shapes))
+    first = [a.get(i) for i in range(len(shapes))]
+    again = {i: b.get(i) for i in order}
+    assert sum(len(boxes) for _, boxes in first) >= 4  # Haar finds "faces" in such frames (10 boxes in these)
+    for i, (frame, boxes) in enumerate(first):
+        other, other_boxes = again[i]
+        assert frame.shape == shapes[i] and np.array_equal(frame, other) and np.array_equal(boxes, other_boxes)
+        assert len(boxes) <= TrainConfig().textured_boxes
+        assert np.all(boxes[:, :2] >= 0) and np.all(boxes[:, 0] + boxes[:, 2] <= shapes[i][1] + 1)
+        assert np.all(boxes[:, 1] + boxes[:, 3] <= shapes[i][0] + 1)
+        assert np.all(np.diff(boxes[:, 2] * boxes[:, 3]) <= 0)  # largest first
+    assert a.get(2)[1] is a.boxes[2]  # found once, kept
+    assert not np.array_equal(first[1][0][:200, :200], first[2][0][:200, :200])

@@ -266,10 +266,11 @@ class TrackerConfig:
     frames before in the same shot (frames where no face was found to fit do not count; centres within ``dim_near``
     face widths, size and pose within ``max_rescale`` and ``max_turn``: ``Tracker._near``). That validator's bias
     was lowered until it accepts no more held-out non-faces than about the landmark validator does (0.7%,
-    ``TrainConfig.wary_rate``), at the cost of 12% of good dim fits held out; a face that was just there is most likely still there. cap12 shrunk to 45 px between
-    the eyes, dark and noisy (the robustness suite's dim_small, 3D): tracked 88.7% -> 95.9%, NME 0.0329 -> 0.0327;
-    its lost frames' fits had NME 0.035-0.06 at confidences 0.07-0.45. Frames of a shot with no accepted fit, and
-    clear faces, still need ``min_confidence``; a cut (``cut_below``) forgets the recent fit.
+    ``TrainConfig.wary_rate``), at the cost of 12% of good dim fits held out; a face that was just there is most
+    likely still there. cap12 shrunk to 45 px between the eyes, dark and noisy (the robustness suite's dim_small,
+    3D): tracked 88.7% -> 95.9%, NME 0.0329 -> 0.0327; its lost frames' fits had NME 0.035-0.06 at confidences
+    0.07-0.45. Frames of a shot with no accepted fit, and clear faces, still need ``min_confidence``; a cut
+    (``cut_below``) forgets the recent fit.
     dim_min_structure: a fit judged by the validator for dim faces is refused, whatever its confidence, in a frame
     whose variation is at the grain of noise (``imaging.frame_structure`` below this; 0: no such check). That
     validator accepted fits of blurred noise that Haar's smallest searches take for faces, in the image and in its

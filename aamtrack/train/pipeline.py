@@ -679,7 +679,8 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     with a blurred one among them.
     The validator for dim faces also learns from far faces at their own scale and Haar's weakest hits on noise
     (``TrainConfig.dim_tiny``: ``tiny_dim_copy``, ``noise_frame``); the landmark validator and the one for soft
-    faces from Haar's boxes on textured noise (``TrainConfig.textured``, ``soft_textured``: ``textured_noise``).
+    faces from Haar's boxes on textured noise (``TrainConfig.textured``: ``textured``, a ``TexturedNegatives``
+    both share).
     Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else
     None, whether each counts in matching the landmark validator's false accepts: all but the far faces', the
     noise frames' and the textured noise's fits, kinds only one of the validators sees)."""

@@ -650,7 +650,8 @@ class TexturedNegatives:
     ``TrainConfig.textured_neighbors``, largest first): the validators' hard negatives (``TrainConfig.textured``).
     A photo's frame comes from its own seed, so each validator that learns from it sees the same frame, and Haar
     runs on it once however many validators do (on textured noise Haar's cascade runs deep: about 0.14 s a search
-    on a 360 x 360 frame, /tmp 2026-12-01)."""
+    on a 360 x 360 frame, /tmp 2026-12-01). The frame itself is drawn again for each validator that asks (about
+    25 ms): kept, the 870 frames of helen_train would hold some 450 MB through both validators."""
 
     def __init__(self, config: TrainConfig, shapes: list):
         self.seed, self.shapes, self.n = config.seed + 14, shapes, config.textured_boxes
@@ -763,7 +764,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
             add(Levels(img, model.features), start(box), truth_s, False)
             noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
             on_non_face(noise, haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2], False)
-        if textured is not None and dim_below <= 0 and i % config.textured == 0:  # hard negatives
+        if textured is not None and i % config.textured == 0:  # hard negatives (not the dim validator's: None)
             on_non_face(*textured.get(i), False)
     y = np.array(y)
     name = "validator for dim faces" if dim_below > 0 else "validator for soft faces" if soft else \
@@ -950,11 +951,12 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 5), config,
             held_out=dim or soft_val, textured=textured)
 
+        own = float(np.mean(logit0[(y0 < 0.5) & matched0] >= 0)) if dim or soft_val else 0.0  # held out
+        rate = config.wary_rate if config.wary_rate > 0 else own
+
         def as_wary(v, y, logit, matched, name):  # as wary of non-faces as ``wary_rate`` says, held out
             if v is None:
                 return None, None
-            own = float(np.mean(logit0[(y0 < 0.5) & matched0] >= 0))  # the landmark validator's, held out
-            rate = config.wary_rate if config.wary_rate > 0 else own
             negatives = logit[(y < 0.5) & matched]
             shift = false_accept_shift(negatives, rate)
             rec = {"false_accepts": rate, "landmark_false_accepts": own,

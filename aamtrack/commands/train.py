@@ -45,6 +45,9 @@ def register(sub) -> None:
                    help="seed of training's random draws (default 0: the shipped models'); the same data and seed "
                         "give the same model up to floating-point rounding, and another seed shows how much a "
                         "result owes to them")
+    p.add_argument("--workers", type=_workers, default=None,
+                   help="threads for the per-image work (default: every core this process may use); the model is "
+                        "the same with any number")
     p.set_defaults(func=run)
 
 
@@ -56,6 +59,17 @@ def _seed(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
     return value
+
+
+def _workers(text: str) -> int:
+    """--workers: a whole number of threads, 1 or more."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of threads (1 or more)")
+    return n
 
 
 def _parse_couples(text: str | None) -> tuple:
@@ -138,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         model, report = train_model(images, np.array(points), args.kind, candide=candide, config=config,
                                     names=tuple(p[0].name for p in pairs),
-                                    progress=lambda it, **kw: tqdm(it, file=sys.stderr, disable=None, **kw))
+                                    progress=lambda it, **kw: tqdm(it, file=sys.stderr, disable=None, **kw),
+                                    workers=args.workers)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
         raise InputError(f"{display_name(args.data)}: training failed on these landmarks ({exc}); "
                          "check the .pts files (degenerate or mismatched points?)") from None

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels import compose, residual_batch
+from .workers import ordered_map
 
 log = logging.getLogger(__name__)
 
@@ -169,18 +170,20 @@ def _ridge_dual(X: np.ndarray, Y: np.ndarray, mask: np.ndarray, alpha: float) ->
 
 def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarray, shape3d: np.ndarray,
                     basis: np.ndarray, mean: np.ndarray, app: np.ndarray, pix_vid: np.ndarray,
-                    pix_bary: np.ndarray, mode: int) -> np.ndarray:
+                    pix_bary: np.ndarray, mode: int, workers: int = 1) -> np.ndarray:
     """(M, D) float32 projected residuals of every start (rows of ``starts``) on its own image: ``images[i]`` a
     feature image (C, h, w) resampled by ``factors[i]``, frame pixel x at ``factors[i] * x + shifts[i]``
-    (``aamtrack.imaging.level_shift``)."""
+    (``aamtrack.imaging.level_shift``); the images' rows on up to ``workers`` threads (``train.workers``)."""
     E = np.empty((len(starts), len(mean)), np.float32)
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.arange(len(images) + 1))
-    for i in range(len(images)):
+
+    def fill(i):  # image i's rows of E, its own
         rows = order[bounds[i]:bounds[i + 1]]
-        if len(rows) == 0:
-            continue
-        out = np.empty((len(rows), len(mean)), np.float32)
-        E[rows] = residual_batch(images[i], factors[i], shifts[i], shape3d, basis, starts[rows], mean, app,
-                                 pix_vid, pix_bary, mode, out)
+        if len(rows):
+            E[rows] = residual_batch(images[i], factors[i], shifts[i], shape3d, basis, starts[rows], mean, app,
+                                     pix_vid, pix_bary, mode, np.empty((len(rows), len(mean)), np.float32))
+
+    for _ in ordered_map(fill, range(len(images)), workers):
+        pass
     return E

@@ -18,6 +18,7 @@ should correct, and the later stages have nothing left to learn on the training 
 from __future__ import annotations
 
 import logging
+from functools import partial
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from ..landmark_cascade import (DescriptorSpec, LandmarkCascade, descriptors, pr
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
 from .cascade import ridge_fit
 from .shape2d import procrustes_mean
+from .workers import ordered_map
 
 log = logging.getLogger(__name__)
 
@@ -68,13 +70,31 @@ def made_starts(truth: np.ndarray, ref: np.ndarray, library: np.ndarray, n_per: 
     return out
 
 
+def _read_starts(spec: DescriptorSpec, ref: np.ndarray, images: list, scales: list, X: np.ndarray,
+                 owner: np.ndarray, truth: np.ndarray, half: float, F: np.ndarray, Y: np.ndarray, frames: np.ndarray,
+                 S: np.ndarray | None, rows: np.ndarray) -> None:
+    """For each start m of ``rows``: its descriptors F[m] on a patch of half side ``half``, the displacement to the
+    label Y[m] and the face frame frames[m] (both in reference units), and with S, its shape S[m]. Each row is the
+    start's own: chunks of rows may be read on several threads."""
+    buf = np.empty((68, spec.size), np.float32)
+    for m in rows:
+        i = owner[m]
+        M, _ = similarity_to(ref, X[m])
+        F[m] = descriptors(spec, images[i], scales[i], X[m], half, M, buf)
+        Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
+        frames[m] = M
+        if S is not None:
+            S[m] = shape_features(ref, X[m], M)
+
+
 def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: np.ndarray, fit_owner: np.ndarray,
                            groups: np.ndarray, *, spec: DescriptorSpec = DEFAULT_SPEC,
                            halves: tuple = (0.35, 0.22, 0.14, 0.1), n_starts: int = 16,
                            error_scale: tuple = (0.5, 1.5), n_components: int = 48,
                            alphas: tuple = (0.3, 1.0, 3.0, 10.0, 30.0), shape_stages: int = 1,
                            shape_weight: float = 3.0, repeats: int = 0, rng: np.random.Generator,
-                           like: LandmarkCascade | None = None, progress=None) -> tuple[LandmarkCascade, list]:
+                           like: LandmarkCascade | None = None, progress=None,
+                           workers: int = 1) -> tuple[LandmarkCascade, list]:
     """Learn the cascade from training images (grey, each resampled by ``scales[i]``), their labels truth
     (n, 68, 2) (frame pixels), the AAM's final fits (M, 68, 2) of image ``fit_owner[m]``, and each image's group
     (an image and its mirror: one side of a hold-out). Each stage projects a point's descriptor on its
@@ -83,6 +103,7 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
     halves), its reference shape, descriptor means and components instead (so that a cascade's last-stage
     descriptors, which the landmark validator weighs, mean the same in both). ``repeats``: how many more times the
     cascade's last stage runs when applied (``LandmarkCascade.repeats``; the stages are learned as without).
+    ``workers``: threads reading the starts' descriptors (``train.workers``; the same cascade with any number).
     Returns (cascade, per-stage record)."""
     progress = progress or (lambda it, **_: it)
     if like is not None and tuple(float(h) for h in halves) != like.halves:
@@ -112,15 +133,9 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         frames = np.empty((len(X), 2, 2))
         with_shape = k >= len(halves) - shape_stages
         S = np.empty((len(X), 136), np.float32) if with_shape else None
-        buf = np.empty((68, spec.size), np.float32)
-        for m in range(len(X)):
-            i = owner[m]
-            M, _ = similarity_to(ref, X[m])
-            F[m] = descriptors(spec, images[i], scales[i], X[m], halves[k], M, buf)
-            Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
-            frames[m] = M
-            if with_shape:
-                S[m] = shape_features(ref, X[m], M)
+        for _ in ordered_map(partial(_read_starts, spec, ref, images, scales, X, owner, truth, halves[k], F, Y, frames,
+                                     S), np.array_split(np.arange(len(X)), max(1, len(X) // 64)), workers):
+            pass
         sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
         if like is None:
             mu = sample.mean(0)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from typing import Callable, Iterable
 
 import cv2
@@ -40,6 +41,7 @@ from .update import perturbation_steps, prior_weights, update_matrix
 from .validator import (blurred_copy, dark_noise_image, degraded, dim_copy, false_accept_shift, held_out_logits,
                         landmark_validator_fit, logistic_fit, non_face_images, occluded_copy, soft_copy,
                         noise_frame, textured_noise, tiny_dim_copy)
+from .workers import PerThread, beside, default_workers, ordered_map
 
 log = logging.getLogger(__name__)
 
@@ -306,7 +308,9 @@ def _model_residuals(sm: ShapeModel, fits: list[ShapeFit], points: np.ndarray) -
 
 def learn_shape(points: np.ndarray, kind: str, *, candide: Candide | None, config: TrainConfig,
                 progress: Progress = _no_progress) -> tuple[ShapeModel, list[ShapeFit]]:
-    """The shape model and each image's fit (pose, sigma, coefficients)."""
+    """The shape model and each image's fit (pose, sigma, coefficients). One thread: scipy's least squares
+    holds the GIL most of the time (two threads took 39 s where one took 29 s, 300 helen_train fits, /tmp
+    2026-12-01)."""
     if kind == "2d":
         sm = pca_shape_model(points, ring=config.ring, max_modes=config.n_pca)
         return sm, [fit_landmarks(sm, p) for p in progress(points, desc="fit shapes", unit="img")]
@@ -403,7 +407,7 @@ def _detection_fits(model: Model, feats, factors, boxes, box_points, widths, n_o
 
 def _degraded_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig: int, n_sharp: int,
                      fits: np.ndarray, owner: np.ndarray, share: float, eye_range: tuple, rng: np.random.Generator, *,
-                     make: Callable | None = None, dim_below: float = 0.0, label: str = "") -> tuple:
+                     make: Callable | None = None, dim_below: float = 0.0, label: str = "", workers: int = 1) -> tuple:
     """Degraded copies (Gaussian-blurred unless ``make`` says otherwise) of a random ``share`` of the sharp
     training images (sigma drawn in ``eye_range`` outer eye-corner distances; a ``share`` above 1: that many
     copies per image) for a landmark cascade: each
@@ -413,32 +417,44 @@ def _degraded_copies(model: Model, gray, pts, boxes, box_points, factors, n_orig
     ``fits[owner == i]``). ``make(gray, eye_px, rng)``: another kind of copy instead (``dim_copy``); with
     ``dim_below`` > 0 only copies with a box whose fit ends on a face with ``signal_to_noise`` below it are kept.
     Returns (images, scales, copied image (n,), fits (k, 68, 2), the copy each fit belongs to (k,))."""
-    searcher = Searcher(model)
+    searchers = PerThread(lambda: Searcher(model))
     sm = model.shape
     make = make or (lambda g, eye, r: blurred_copy(g, eye, eye_range, r))
     n_copies = int(round(share * n_sharp))
     pick = np.concatenate([rng.permutation(n_sharp) for _ in range(max(1, int(np.ceil(share))))])[:n_copies]
-    images, scales, picked, copy_fits, copy_owner = [], [], [], [], []
-    for i in pick:
-        levels = Levels(make(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), rng), model.features)
+
+    def copies():  # made in this thread: they draw random numbers
+        for i in pick:
+            yield i, make(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), rng)
+
+    def fitted(item):  # (image at the finest factor, the search's fit or None), or None: not kept
+        i, copy = item
+        levels = Levels(copy, model.features)
         f = [fk[i] for fk in factors]
         fine = levels.resampled(f[-1])  # first: the coarser levels are then resampled from it
         box = _image_box(boxes, i, n_orig, gray[i].shape[1])
+        if box is None:
+            return None if dim_below > 0 else (fine, None)
+        fit = searchers.get().fit(levels, _box_start(sm, box, box_points), factors=f, landmarks=False).landmarks
+        if dim_below > 0 and signal_to_noise(fine, f[-1], fit) >= dim_below:
+            return None
+        return fine, fit
+
+    images, scales, picked, copy_fits, copy_owner = [], [], [], [], []
+    for i, got in zip(pick, ordered_map(fitted, copies(), workers), strict=True):
+        if got is None:
+            continue
+        fine, fit = got
         j = len(images)
-        if box is not None:
-            fit = searcher.fit(levels, _box_start(sm, box, box_points), factors=f, landmarks=False).landmarks
-            if dim_below > 0 and signal_to_noise(fine, f[-1], fit) >= dim_below:
-                continue
+        if fit is not None:
             copy_fits.append(fit)
             copy_owner.append(j)
-        elif dim_below > 0:
-            continue
         else:
             rows = np.flatnonzero(owner == i)
             copy_fits.extend(fits[rows])
             copy_owner.extend([j] * len(rows))
         images.append(fine)
-        scales.append(f[-1])
+        scales.append(factors[-1][i])
         picked.append(i)
     log.info("landmark cascade: %d %s copies", len(images), label or ("dim" if dim_below > 0 else "blurred"))
     return images, scales, np.array(picked, np.int64), np.array(copy_fits).reshape(-1, 68, 2), \
@@ -504,7 +520,8 @@ def _augment(images, points, mirror: bool, blur_share: float = 0.0, blur_eye: tu
 
 
 def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, textures, frames, free_all, lo,
-                     hi, config, progress, record, rng, late=None) -> tuple[list[Couple], np.ndarray, np.ndarray]:
+                     hi, config, progress, record, rng, late=None,
+                     workers: int = 1) -> tuple[list[Couple], np.ndarray, np.ndarray]:
     """Learn every couple's cascade, coarse to fine, carrying the starts along. Each finer couple also learns
     from fresh tracking-like starts (between frames the tracker skips the coarsest couple, so a finer couple
     must handle a frame's motion itself, not only what the coarser couples leave). Returns (couples, final
@@ -540,7 +557,7 @@ def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, 
         err_before = float(np.median(nme(_landmarks(sm, basis, Pc[:n0]), points[owner[:n0]])))
         for s in progress(range(config.n_stages), desc=f"cascade couple {k + 1}", unit="stage"):
             E = residual_matrix(feats[k], factors[k], [level_shift(r) for r in factors[k]], Pc, owner, mean3d,
-                                basis, t.mean, t.appearance, frames[k].pix_vid, frames[k].pix_bary, mode)
+                                basis, t.mean, t.appearance, frames[k].pix_vid, frames[k].pix_bary, mode, workers)
             Y = inverse_compose(Pc, P[owner], free)
             R, b, alpha = ridge_fit(E, Y, groups=owner_group[owner], rng=np.random.default_rng(config.seed + k))
             P_next = compose_all(Pc, free, E @ R.T.astype(np.float64) + b, lo, hi)
@@ -559,24 +576,31 @@ def _cascade_couples(feats, factors, P, points, owner_group, starts, owner, sm, 
 
 
 def _soft_couples(gray, pts, P, factors, owner_group, n_sharp: int, det_deltas, sm, textures, frames, free_all, lo,
-                  hi, config, progress, rng) -> tuple[tuple, list]:
+                  hi, config, progress, rng, workers: int = 1) -> tuple[tuple, list]:
     """Couples learned as ``_cascade_couples`` learns the sharp ones, on Gaussian-blurred copies of a random
     ``soft_search_share`` of the sharp training images (sigma drawn in ``landmark_blur_eye`` outer eye-corner
     distances) with their images' fits, detection-like and tracking-like starts; the appearance (``textures``)
     stays the sharp photos'. Returns (couples, per-stage records)."""
     pick = rng.permutation(n_sharp)[:int(round(config.soft_search_share * n_sharp))]
-    feats = [[] for _ in config.couples]
-    for i in progress(pick, desc="soft copies", unit="img"):
-        lv = Levels(blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), config.landmark_blur_eye,
-                                 rng), config.feature_spec)
-        for k in range(len(config.couples)):  # coarse to fine, as the sharp images' levels were made
-            feats[k].append(lv.get(factors[k][i]))
+
+    def copies():  # made in this thread: they draw random numbers
+        for i in progress(pick, desc="soft copies", unit="img"):
+            yield i, blurred_copy(gray[i], float(np.linalg.norm(pts[i, 45] - pts[i, 36])), config.landmark_blur_eye,
+                                  rng)
+
+    def levels(item):  # coarse to fine, as the sharp images' levels were made
+        i, copy = item
+        lv = Levels(copy, config.feature_spec)
+        return [lv.get(factors[k][i]) for k in range(len(config.couples))]
+
+    feats = [list(f) for f in zip(*ordered_map(levels, copies(), workers))] if len(pick) else \
+        [[] for _ in config.couples]
     starts, owner = perturbed_starts(P[pick], free_all, det_deltas, sm.spreads(), sm.frontal_width(), lo, hi,
                                      n_per=config.n_starts, rng=rng)
     record = []
     couples, _, _ = _cascade_couples(feats, [[f[i] for i in pick] for f in factors], P[pick], pts[pick],
                                      owner_group[pick], starts, owner, sm, textures, frames, free_all, lo, hi, config,
-                                     progress, record, rng)
+                                     progress, record, rng, workers=workers)
     log.info("soft couples: learned on %d blurred copies", len(pick))
     return tuple(couples), record
 
@@ -655,20 +679,21 @@ class TexturedNegatives:
 
     def __init__(self, config: TrainConfig, shapes: list):
         self.seed, self.shapes, self.n = config.seed + 14, shapes, config.textured_boxes
-        self.haar = HaarDetector(min_neighbors=config.textured_neighbors)
+        neighbors = config.textured_neighbors
+        self.haar = PerThread(lambda: HaarDetector(min_neighbors=neighbors))  # a classifier serves one thread
         self.boxes = {}
 
     def get(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """(frame, its boxes) for photo ``i``."""
         noise = textured_noise(self.shapes[i], np.random.default_rng((self.seed, i)))
         if i not in self.boxes:
-            self.boxes[i] = self.haar.detect_all(noise)[:self.n]
+            self.boxes[i] = self.haar.get().detect_all(noise)[:self.n]
         return noise, self.boxes[i]
 
 
 def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: int, rng: np.random.Generator,
                         config: TrainConfig, *, dim_below: float = 0.0, soft: bool = False,
-                        held_out: bool = False, textured: TexturedNegatives | None = None) -> tuple:
+                        held_out: bool = False, textured: TexturedNegatives | None = None, workers: int = 1) -> tuple:
     """Learn the landmark validator (``train.validator.landmark_validator_fit``) from full fits (search and
     landmark cascade, as a still is fitted) of the training photos (not their mirrors); see ``TrainConfig``.
     ``dim_below`` > 0: the validator for dim faces instead, from a dim copy of every photo (``dim_copy``), its
@@ -685,11 +710,12 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else
     None, whether each counts in matching the landmark validator's false accepts: all but the far faces', the
     noise frames' and the textured noise's fits, kinds only one of the validators sees)."""
-    searcher = Searcher(model)
     sm, lc = model.shape, model.landmark_cascade
-    S, Z, y, matched = [], [], [], []
+    searchers = PerThread(lambda: Searcher(model))
+    width = sm.frontal_width()  # ``Searcher.width``
 
-    def add(levels, p0, truth, match=True):
+    def fitted(levels, p0, truth, match=True):  # a full fit's sample (stats, z, label, match), or None: not kept
+        searcher = searchers.get()
         r = searcher.factors(p0)[-1]  # as ``Searcher.fit`` passes it to ``refine_landmarks``
         res = searcher.fit(levels, p0, landmarks=False)
         img = levels.resampled(r)
@@ -698,74 +724,85 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         dim = dim_below > 0 and signal_to_noise(img, r, res.landmarks) < dim_below
         pts, z, _ = cascade.run(img, r, res.landmarks, 0, 0 if dim else None)
         if dim_below > 0 and truth is not None and signal_to_noise(img, r, pts) >= 2 * dim_below:
-            return
+            return None
         if soft and truth is not None and cascade is lc:
-            return
+            return None
         if truth is not None:
             e = float(nme(pts, truth))
             if 0.06 <= e <= 0.10:  # neither clearly on the face nor clearly off it
-                return
-        S.append(res.stats)
-        Z.append(z)
-        y.append(float(truth is not None and e < 0.06))
-        matched.append(match)
+                return None
+        return res.stats, z, float(truth is not None and e < 0.06), match
 
     def start(box, roll=0.0):
         p0 = _box_start(sm, box, box_points)
         p0[2] += roll
         return p0
 
-    def on_non_face(image, at, match=True):  # fits from each box of ``at`` in a frame with no face: negatives
-        for box in at:  # (a fresh ``Levels`` per box, as the shipped models were trained: one shared would
-            add(Levels(image, model.features), start(box), None, match)  # resample in another order)
+    def non_face(image, at, match=True):  # fits from each box of ``at`` in a frame with no face: negatives
+        # (a fresh ``Levels`` per box, as the shipped models were trained: one shared would resample in another order)
+        return [fitted(Levels(image, model.features), start(box), None, match) for box in at]
 
     tiny_rng = np.random.default_rng(config.seed + 13)  # its own draws: the other samples stay as they were
     # Haar's weakest hits on noise (one neighbour): a box on 21 of 40 noise frames in this search, none with the
     # tracker's four; the patches that look most like a face to it
-    haar = HaarDetector(min_neighbors=1) if dim_below > 0 and config.dim_tiny > 0 else None
-    for i in range(n_orig):
-        truth = pts[i]
-        eye = float(np.linalg.norm(truth[45] - truth[36]))
-        if dim_below > 0 or soft:
-            versions = [dim_copy(gray[i], eye, rng) if dim_below > 0 else soft_copy(gray[i], eye, rng)]
-        else:
-            versions = [gray[i]]
-            if rng.random() < config.validator_degraded:
-                versions.append(degraded(gray[i], eye, rng))
-        for img in versions:
-            levels = Levels(img, model.features)
-            if np.isfinite(boxes[i, 0]):
-                add(levels, start(boxes[i]), truth)
-            p0 = P[i].copy()  # a tracked frame's start: the shape fit, moved a little
-            p0[2] += rng.normal(0.0, 0.05)
-            p0[3] *= np.exp(rng.normal(0.0, 0.04))
-            p0[4:6] += rng.normal(0.0, 0.04, 2) * p0[3] * searcher.width
-            add(levels, p0, truth)
-            face_w = float(np.ptp(truth[:, 0]))
-            centre = truth.mean(0)
-            H, W = img.shape
-            for _ in range(config.validator_negatives):  # random boxes away from the face
-                s = face_w * rng.uniform(0.4, 1.3)
-                for _ in range(20):
-                    x, y0 = rng.uniform(-0.25 * s, W - 0.75 * s), rng.uniform(-0.25 * s, H - 0.75 * s)
-                    if np.hypot(x + s / 2 - centre[0], y0 + s / 2 - centre[1]) > 0.6 * face_w:
-                        add(levels, start((x, y0, s, s), rng.uniform(-0.6, 0.6)), truth)
-                        break
-        if i % 8 == 0 and np.isfinite(boxes[i, 0]):  # non-face images where the face was
-            blanks = non_face_images(gray[i].shape, rng)
-            if dim_below > 0:
-                blanks.append(dark_noise_image(gray[i].shape, rng))
-            if soft:
-                blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
-            for blank in blanks:
-                on_non_face(blank, [boxes[i]])
-        if dim_below > 0 and config.dim_tiny > 0 and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
-            img, box, truth_s = tiny_dim_copy(gray[i], boxes[i], truth, eye, tiny_rng)
-            add(Levels(img, model.features), start(box), truth_s, False)
-            noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
-            on_non_face(noise, haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2], False)
-        if textured is not None and i % config.textured == 0:  # hard negatives (not the dim validator's: None)
-            on_non_face(*textured.get(i), False)
+    haars = PerThread(lambda: HaarDetector(min_neighbors=1)) if dim_below > 0 and config.dim_tiny > 0 else None
+
+    def photos():  # each photo's work, in the order it was always done: lists of calls, each giving samples
+        for i in range(n_orig):  # every random number drawn here, in this thread
+            work = []
+            truth = pts[i]
+            eye = float(np.linalg.norm(truth[45] - truth[36]))
+            if dim_below > 0 or soft:
+                versions = [dim_copy(gray[i], eye, rng) if dim_below > 0 else soft_copy(gray[i], eye, rng)]
+            else:
+                versions = [gray[i]]
+                if rng.random() < config.validator_degraded:
+                    versions.append(degraded(gray[i], eye, rng))
+            for img in versions:
+                levels = Levels(img, model.features)  # shared by the version's fits, run in this order
+                if np.isfinite(boxes[i, 0]):
+                    work.append(partial(fitted, levels, start(boxes[i]), truth))
+                p0 = P[i].copy()  # a tracked frame's start: the shape fit, moved a little
+                p0[2] += rng.normal(0.0, 0.05)
+                p0[3] *= np.exp(rng.normal(0.0, 0.04))
+                p0[4:6] += rng.normal(0.0, 0.04, 2) * p0[3] * width
+                work.append(partial(fitted, levels, p0, truth))
+                face_w = float(np.ptp(truth[:, 0]))
+                centre = truth.mean(0)
+                H, W = img.shape
+                for _ in range(config.validator_negatives):  # random boxes away from the face
+                    s = face_w * rng.uniform(0.4, 1.3)
+                    for _ in range(20):
+                        x, y0 = rng.uniform(-0.25 * s, W - 0.75 * s), rng.uniform(-0.25 * s, H - 0.75 * s)
+                        if np.hypot(x + s / 2 - centre[0], y0 + s / 2 - centre[1]) > 0.6 * face_w:
+                            work.append(partial(fitted, levels, start((x, y0, s, s), rng.uniform(-0.6, 0.6)), truth))
+                            break
+            if i % 8 == 0 and np.isfinite(boxes[i, 0]):  # non-face images where the face was
+                blanks = non_face_images(gray[i].shape, rng)
+                if dim_below > 0:
+                    blanks.append(dark_noise_image(gray[i].shape, rng))
+                if soft:
+                    blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
+                work.extend(partial(non_face, blank, [boxes[i]]) for blank in blanks)
+            if dim_below > 0 and config.dim_tiny > 0 and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
+                img, box, truth_s = tiny_dim_copy(gray[i], boxes[i], truth, eye, tiny_rng)
+                work.append(partial(fitted, Levels(img, model.features), start(box), truth_s, False))
+                noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
+                work.append(lambda noise=noise: non_face(noise, haars.get().detect_all(
+                    noise, width=640, equalize="local", smallest=True)[:2], False))
+            if textured is not None and i % config.textured == 0:  # hard negatives (not the dim validator's: None)
+                work.append(lambda i=i: non_face(*textured.get(i), False))
+            yield work
+
+    def run(work):  # a photo's calls, in order, on one thread
+        out = []
+        for call in work:
+            got = call()
+            out.extend(got if isinstance(got, list) else [got])
+        return [g for g in out if g is not None]
+
+    samples = [g for got in ordered_map(run, photos(), workers) for g in got]
+    S, Z, y, matched = ([g[k] for g in samples] for k in range(4))
     y = np.array(y)
     name = "validator for dim faces" if dim_below > 0 else "validator for soft faces" if soft else \
         "landmark validator"
@@ -779,16 +816,20 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
 
 
 def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, candide: Candide | None = None,
-                config: TrainConfig = TrainConfig(), names: tuple = (),
-                progress: Progress = _no_progress) -> tuple[Model, TrainReport]:
+                config: TrainConfig = TrainConfig(), names: tuple = (), progress: Progress = _no_progress,
+                workers: int | None = None) -> tuple[Model, TrainReport]:
     """Train a model from grey or BGR images and their (n, 68, 2) landmarks (the package's 1-based pixels,
     ``metrics.PIXEL_ORIGIN``). Inside, a model works in OpenCV's pixels (the centre of the top-left pixel at 0, as
     its images are resampled and warped): the labels are moved by -PIXEL_ORIGIN here and the tracker's results by
     +PIXEL_ORIGIN (``Tracker._result``). Learning the 1-based labels as they are taught a model a 1-pixel offset at
     the training faces' size, which it then scaled with every face: 0.27 px instead of 1 px at 30 px between the
-    eyes (helen_test shrunk so: mean error (-0.89, -0.50) px against (-0.55, +0.75) at full size)."""
+    eyes (helen_test shrunk so: mean error (-0.89, -0.50) px against (-0.55, +0.75) at full size).
+    ``workers``: threads for the per-image work (``train.workers``; default: the cores this process may use); the
+    model is the same with any number."""
     t0 = time.perf_counter()
+    workers = default_workers() if workers is None else max(1, int(workers))
     points = np.asarray(points, float) - PIXEL_ORIGIN
+    boxes_found = beside(training_boxes, images, points, workers=workers)  # Haar's searches beside the shape fits
     n_orig = len(images)
     gray, pts, parent = _augment(images, points, config.mirror, config.blur_share,
                                  rng=np.random.default_rng(config.seed + 1))
@@ -813,7 +854,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     width = sm.frontal_width()
     features = config.feature_spec
 
-    boxes = training_boxes(images, points)
+    boxes = boxes_found()
     box_points = box_geometry(boxes, np.asarray(points, float))
     det = np.flatnonzero(np.isfinite(boxes[:, 0]))
     log.info("Haar detector found %d of %d training faces", len(det), n_orig)
@@ -828,16 +869,26 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     mean3d = np.ascontiguousarray(sm.mean)
     tex = [[] for _ in config.couples]
     fine_gray = []  # what the landmark cascade reads: the grey image at the finest couple's resolution
-    for i in progress(range(len(gray)), desc="textures", unit="img"):
+
+    def levels(i):  # image i's feature images, its textures (photos and mirrors) and its finest grey image
         lv = Levels(gray[i], features)
+        got = [lv.get(factors[k][i]) for k in range(len(config.couples))]
+        if i >= n_sharp:  # the appearance comes from the photos (and mirrors) only, not the made copies
+            return got, None, None
+        rs = [factors[k][i] for k in range(len(config.couples))]
+        samples = [sample_texture(got[k], r, level_shift(r), mean3d, basis, P[i], frames[k], features.mode)
+                   for k, r in enumerate(rs)]
+        # after the couples' levels: made first, it would change how the coarser ones are resampled
+        return got, samples, lv.resampled(factors[-1][i])
+
+    for i, (got, samples, fine) in enumerate(ordered_map(levels, progress(range(len(gray)), desc="textures",
+                                                                          unit="img"), workers)):
         for k in range(len(config.couples)):
-            r = factors[k][i]
-            feats[k][i] = lv.get(r)
-            if i < n_sharp:  # the appearance comes from the photos (and mirrors) only, not the made copies
-                tex[k].append(sample_texture(feats[k][i], r, level_shift(r), mean3d, basis, P[i], frames[k],
-                                             features.mode))
-        if i < n_sharp:  # after the couples' levels: made first, it would change how the coarser ones are resampled
-            fine_gray.append(lv.resampled(factors[-1][i]))
+            feats[k][i] = got[k]
+            if samples is not None:
+                tex[k].append(samples[k])
+        if fine is not None:
+            fine_gray.append(fine)
     textures = [Texture(f, *learn_appearance(np.array(t), n_modes=config.n_appearance, mode=features.mode))
                 for f, t in zip(frames, tex)]
     del tex
@@ -855,7 +906,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                                      n_per=config.n_starts, rng=rng)
     if config.update == "cascade":
         couples, Pfinal, owner = _cascade_couples(feats, factors, P, pts, owner_group, starts, owner, sm, textures,
-                                                  frames, free_all, lo, hi, config, progress, record, rng, late)
+                                                  frames, free_all, lo, hi, config, progress, record, rng, late,
+                                                  workers=workers)
     else:
         couples = _jacobian_couples(gray, P, sm, textures, frames, free_all, config, progress)
         Pfinal = None
@@ -864,7 +916,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             config.landmark_halves:
         soft_couples, soft_search_record = _soft_couples(gray, pts, P, factors, owner_group, n_sharp, det_deltas, sm,
                                                          textures, frames, free_all, lo, hi, config, progress,
-                                                         np.random.default_rng(config.seed + 9))
+                                                         np.random.default_rng(config.seed + 9), workers=workers)
     t_upd = time.perf_counter() - t0 - t_shape - t_det - t_tex
 
     dummy = Validator(STAT_NAMES, np.zeros(len(STAT_NAMES)), np.zeros(len(STAT_NAMES)), np.ones(len(STAT_NAMES)), 0.0)
@@ -895,12 +947,13 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         lmk_kw = dict(halves=tuple(config.landmark_halves), n_starts=config.landmark_starts,
                       n_components=config.landmark_pca, shape_stages=config.landmark_shape_stages,
                       shape_weight=config.landmark_shape_weight, repeats=config.landmark_repeats,
-                      progress=progress)
+                      progress=progress, workers=workers)
         searching = replace(model, validator=validator)
         if config.landmark_blur_share > 0:  # blurred copies: the sharp image's truth and group, their own fits
             b_images, b_scales, b_of, b_fits, b_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
-                config.landmark_blur_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 4))
+                config.landmark_blur_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 4),
+                workers=workers)
             lmk_images, lmk_scales = lmk_images + b_images, lmk_scales + b_scales
             copied = np.r_[np.arange(n_sharp), b_of]  # each training image's source: itself, or the one blurred
             lmk_truth, lmk_groups = pts[copied], owner_group[copied]
@@ -911,7 +964,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             o_images, o_scales, o_of, o_fits, o_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.landmark_occlude_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 13),
-                make=lambda g, eye, r: occluded_copy(g, eye, r, donors=donors), label="occluded")
+                make=lambda g, eye, r: occluded_copy(g, eye, r, donors=donors), label="occluded", workers=workers)
             cascade_data = (lmk_images + o_images, lmk_scales + o_scales, np.concatenate([lmk_truth, pts[o_of]]),
                             np.concatenate([fits_det, o_fits]), np.r_[owner_det, len(lmk_images) + o_owner],
                             np.r_[lmk_groups, owner_group[o_of]])
@@ -920,7 +973,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         if config.soft_share > 0:  # a cascade of its own for soft faces, on blurred copies alone
             b_images, b_scales, b_of, b_fits, b_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
-                config.soft_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 6))
+                config.soft_share, config.landmark_blur_eye, np.random.default_rng(config.seed + 6), workers=workers)
             soft_cascade, soft_record = learn_landmark_cascade(
                 b_images, b_scales, pts[b_of], b_fits, b_owner, owner_group[b_of], like=landmark_cascade,
                 rng=np.random.default_rng(config.seed + 7), **lmk_kw)
@@ -933,7 +986,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
             d_images, d_scales, d_of, d_fits, d_owner = _degraded_copies(
                 searching, gray, pts, boxes, box_points, factors, n_orig, n_sharp, fits_det, owner_det,
                 config.dim_cascade, config.landmark_blur_eye, np.random.default_rng(config.seed + 11), make=dim_copy,
-                dim_below=2 * config.dim_validator)
+                dim_below=2 * config.dim_validator, workers=workers)
             if len(d_images) >= 20:
                 dim_cascade, dim_cascade_record = learn_landmark_cascade(
                     d_images, d_scales, pts[d_of], d_fits, d_owner, owner_group[d_of], like=landmark_cascade,
@@ -949,7 +1002,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         textured = TexturedNegatives(config, [g.shape for g in gray[:n_orig]]) if config.textured > 0 else None
         landmark_validator, y0, logit0, matched0 = _landmark_validator(
             lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 5), config,
-            held_out=dim or soft_val, textured=textured)
+            held_out=dim or soft_val, textured=textured, workers=workers)
 
         own = float(np.mean(logit0[(y0 < 0.5) & matched0] >= 0)) if dim or soft_val else 0.0  # held out
         rate = config.wary_rate if config.wary_rate > 0 else own
@@ -969,11 +1022,11 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         if dim:
             dim_validator, dim_record = as_wary(*_landmark_validator(
                 lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 8), config,
-                dim_below=config.dim_validator, held_out=True), "validator for dim faces")
+                dim_below=config.dim_validator, held_out=True, workers=workers), "validator for dim faces")
         if soft_val:
             soft_validator, soft_val_record = as_wary(*_landmark_validator(
                 lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 10), config,
-                soft=True, held_out=True, textured=textured), "validator for soft faces")
+                soft=True, held_out=True, textured=textured, workers=workers), "validator for soft faces")
     n0 = len(starts)  # the detection-and-tracking starts every couple saw; the rest joined at finer couples
     timings = {"shape_s": t_shape, "detector_s": t_det, "texture_s": t_tex, "update_s": t_upd, "validator_s": t_val,
                "landmark_s": t_lmk,

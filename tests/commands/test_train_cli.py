@@ -60,6 +60,28 @@ def test_bad_seed(tmp_path, dataset, capsys, seed):
     assert "--seed" in err and "whole number" in err
 
 
+def test_workers_give_the_same_model(tmp_path, dataset, capsys):
+    """``--workers`` sets the threads of the per-image work and nothing else (``tests/train/test_workers.py``
+    checks every array of a 3D model with all its validators)."""
+    for n in ("1", "2"):
+        assert main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(tmp_path / f"m{n}.npz"),
+                     "--couples", "32:16,64:24", "--workers", n]) == 0
+    m1, m2 = load_model(tmp_path / "m1.npz"), load_model(tmp_path / "m2.npz")
+    np.testing.assert_array_equal(m1.couples[-1].cascade, m2.couples[-1].cascade)
+    np.testing.assert_array_equal(m1.landmark_cascade.regressors, m2.landmark_cascade.regressors)
+
+
+@pytest.mark.parametrize("workers", ["0", "-2", "x"])
+def test_bad_workers(tmp_path, dataset, capsys, workers):
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--data", str(dataset), "--kind", "2d", "--out", str(tmp_path / "m.npz"),
+              "--workers", workers])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--workers" in err and "number of threads" in err
+    assert not (tmp_path / "m.npz").exists()
+
+
 def _one_line_error(capsys, *needles):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("aamtrack train: error:"), err

@@ -674,26 +674,83 @@ class TexturedNegatives:
     ``TrainConfig.textured_neighbors``, largest first): the validators' hard negatives (``TrainConfig.textured``).
     A photo's frame comes from its own seed, so each validator that learns from it sees the same frame, and Haar
     runs on it once however many validators do (on textured noise Haar's cascade runs deep: about 0.14 s a search
-    on a 360 x 360 frame, /tmp 2026-12-01). The frame itself is drawn again for each validator that asks (about
-    25 ms): kept, the 870 frames of helen_train would hold some 450 MB through both validators."""
+    on a 360 x 360 frame, /tmp 2026-12-01), for every ``TrainConfig.textured``-th photo at once, when made (with
+    ``workers`` > 1 on a thread of its own, beside training's other work: ``train.workers.beside``). The frame
+    itself is drawn again for each validator that asks (about 25 ms): kept, the 870 frames of helen_train would
+    hold some 450 MB through both validators."""
 
-    def __init__(self, config: TrainConfig, shapes: list):
+    def __init__(self, config: TrainConfig, shapes: list, workers: int = 1):
         self.seed, self.shapes, self.n = config.seed + 14, shapes, config.textured_boxes
-        neighbors = config.textured_neighbors
-        self.haar = PerThread(lambda: HaarDetector(min_neighbors=neighbors))  # a classifier serves one thread
-        self.boxes = {}
+        self.haar = HaarDetector(min_neighbors=config.textured_neighbors)
+        self.found = beside(self._find, range(0, len(shapes), config.textured), workers=workers)
+
+    def _find(self, photos) -> dict:
+        """Each of these photos' boxes."""
+        return {i: self.haar.detect_all(self.frame(i))[:self.n] for i in photos}
+
+    def frame(self, i: int) -> np.ndarray:
+        return textured_noise(self.shapes[i], np.random.default_rng((self.seed, i)))
 
     def get(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        """(frame, its boxes) for photo ``i``."""
-        noise = textured_noise(self.shapes[i], np.random.default_rng((self.seed, i)))
-        if i not in self.boxes:
-            self.boxes[i] = self.haar.get().detect_all(noise)[:self.n]
-        return noise, self.boxes[i]
+        """(frame, its boxes) for photo ``i`` (one of every ``TrainConfig.textured``)."""
+        return self.frame(i), self.found()[i]
+
+
+class TinyDimNegatives:
+    """The validator for dim faces' far faces and noise frames (``TrainConfig.dim_tiny``: ``tiny_dim_copy``,
+    ``noise_frame``), drawn from their own generator in photo order, and Haar's weakest hits on the noise frames
+    (one neighbour, the smallest boxes, strongest first: a box on 21 of 40 noise frames in this search, none with
+    the tracker's four; the patches that look most like a face to it). The boxes are found when made, drawing
+    the same sequence ahead (with ``workers`` > 1 on a thread of its own, beside training's other work: about 95 s
+    of Haar on both cores of this machine for helen_train, py-spy 2026-12-01); ``draws`` checks each frame
+    against the one Haar searched."""
+
+    def __init__(self, gray, boxes, pts, n_orig: int, config: TrainConfig, workers: int = 1):
+        self.gray, self.boxes, self.pts, self.n_orig, self.config = gray, boxes, pts, n_orig, config
+        self.haar = HaarDetector(min_neighbors=1)
+        self.found = beside(self._find, workers=workers)
+
+    def photos(self) -> list:
+        """The photos that give a far face and a noise frame."""
+        every = self.config.dim_tiny
+        return [i for i in range(0, self.n_orig, every) if np.isfinite(self.boxes[i, 0])]
+
+    def _draw(self):
+        """(photo, far face image, its box, its points, noise frame) in photo order, from the seeded generator."""
+        rng = np.random.default_rng(self.config.seed + 13)  # its own draws: the other samples stay as they were
+        for i in self.photos():
+            truth = self.pts[i]
+            eye = float(np.linalg.norm(truth[45] - truth[36]))
+            img, box, truth_s = tiny_dim_copy(self.gray[i], self.boxes[i], truth, eye, rng)
+            yield i, img, box, truth_s, noise_frame((480, 640), rng)
+
+    def _find(self) -> dict:
+        out = {}
+        for i, _, _, _, noise in self._draw():
+            out[i] = (_digest(noise), self.haar.detect_all(noise, width=640, equalize="local", smallest=True)[:2])
+        return out
+
+    def draws(self):
+        """``_draw``'s items, each with the noise frame's boxes: (photo, image, box, points, noise, noise boxes)."""
+        found = self.found()
+        for i, img, box, truth_s, noise in self._draw():
+            digest, at = found[i]
+            if digest != _digest(noise):
+                raise RuntimeError(f"photo {i}: the dim validator's noise frame differs from the one Haar searched")
+            yield i, img, box, truth_s, noise, at
+
+
+def _digest(a: np.ndarray) -> bytes:
+    """A short fingerprint of an array's bytes."""
+    import hashlib
+
+    return hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8), digest_size=16).digest()
 
 
 def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: int, rng: np.random.Generator,
                         config: TrainConfig, *, dim_below: float = 0.0, soft: bool = False,
-                        held_out: bool = False, textured: TexturedNegatives | None = None, workers: int = 1) -> tuple:
+                        held_out: bool = False, textured: TexturedNegatives | None = None,
+                        tiny: TinyDimNegatives | None = None, workers: int = 1) -> tuple:
     """Learn the landmark validator (``train.validator.landmark_validator_fit``) from full fits (search and
     landmark cascade, as a still is fitted) of the training photos (not their mirrors); see ``TrainConfig``.
     ``dim_below`` > 0: the validator for dim faces instead, from a dim copy of every photo (``dim_copy``), its
@@ -742,10 +799,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         # (a fresh ``Levels`` per box, as the shipped models were trained: one shared would resample in another order)
         return [fitted(Levels(image, model.features), start(box), None, match) for box in at]
 
-    tiny_rng = np.random.default_rng(config.seed + 13)  # its own draws: the other samples stay as they were
-    # Haar's weakest hits on noise (one neighbour): a box on 21 of 40 noise frames in this search, none with the
-    # tracker's four; the patches that look most like a face to it
-    haars = PerThread(lambda: HaarDetector(min_neighbors=1)) if dim_below > 0 and config.dim_tiny > 0 else None
+    tiny_draws = tiny.draws() if tiny is not None and dim_below > 0 else iter(())
 
     def photos():  # each photo's work, in the order it was always done: lists of calls, each giving samples
         for i in range(n_orig):  # every random number drawn here, in this thread
@@ -784,12 +838,12 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
                 if soft:
                     blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
                 work.extend(partial(non_face, blank, [boxes[i]]) for blank in blanks)
-            if dim_below > 0 and config.dim_tiny > 0 and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
-                img, box, truth_s = tiny_dim_copy(gray[i], boxes[i], truth, eye, tiny_rng)
+            if dim_below > 0 and tiny is not None and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
+                j, img, box, truth_s, noise, at = next(tiny_draws)  # ``TinyDimNegatives``: drawn in photo order
+                if j != i:
+                    raise RuntimeError(f"photo {i}: the far face and noise frame drawn are photo {j}'s")
                 work.append(partial(fitted, Levels(img, model.features), start(box), truth_s, False))
-                noise = noise_frame((480, 640), tiny_rng)  # its fits where Haar finds "faces": hard negatives
-                work.append(lambda noise=noise: non_face(noise, haars.get().detect_all(
-                    noise, width=640, equalize="local", smallest=True)[:2], False))
+                work.append(partial(non_face, noise, at, False))  # its fits where Haar finds "faces": hard negatives
             if textured is not None and i % config.textured == 0:  # hard negatives (not the dim validator's: None)
                 work.append(lambda i=i: non_face(*textured.get(i), False))
             yield work
@@ -834,6 +888,10 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     gray, pts, parent = _augment(images, points, config.mirror, config.blur_share,
                                  rng=np.random.default_rng(config.seed + 1))
     n_sharp = n_orig * (2 if config.mirror else 1)  # the blurred copies take the fits of their sharp images
+    validators = bool(config.landmark_halves) and config.landmark_validator  # the landmark validators are learned
+    # their hard negatives' Haar searches (minutes: Haar runs deep on noise), beside the work that holds the GIL
+    textured = TexturedNegatives(config, [g.shape for g in gray[:n_orig]], workers) \
+        if validators and config.textured > 0 else None
     sm, fits = learn_shape(pts[:n_sharp], kind, candide=candide, config=config, progress=progress)
     fits = fits + [fits[j] for j in parent[n_sharp:]]
     tris = texture_triangles(sm, config)
@@ -855,6 +913,8 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
     features = config.feature_spec
 
     boxes = boxes_found()
+    tiny = TinyDimNegatives(gray, boxes, pts, n_orig, config, workers) \
+        if validators and config.dim_validator > 0 and config.dim_tiny > 0 else None
     box_points = box_geometry(boxes, np.asarray(points, float))
     det = np.flatnonzero(np.isfinite(boxes[:, 0]))
     log.info("Haar detector found %d of %d training faces", len(det), n_orig)
@@ -999,7 +1059,6 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
                             soft_above=soft_above, dim_cascade=dim_cascade)
         dim = config.dim_validator > 0
         soft_val = config.soft_validator and soft_cascade is not None
-        textured = TexturedNegatives(config, [g.shape for g in gray[:n_orig]]) if config.textured > 0 else None
         landmark_validator, y0, logit0, matched0 = _landmark_validator(
             lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 5), config,
             held_out=dim or soft_val, textured=textured, workers=workers)
@@ -1022,7 +1081,7 @@ def train_model(images: list[np.ndarray], points: np.ndarray, kind: str, *, cand
         if dim:
             dim_validator, dim_record = as_wary(*_landmark_validator(
                 lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 8), config,
-                dim_below=config.dim_validator, held_out=True, workers=workers), "validator for dim faces")
+                dim_below=config.dim_validator, held_out=True, tiny=tiny, workers=workers), "validator for dim faces")
         if soft_val:
             soft_validator, soft_val_record = as_wary(*_landmark_validator(
                 lmk_model, gray, pts, P, boxes, box_points, n_orig, np.random.default_rng(config.seed + 10), config,

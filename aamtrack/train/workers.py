@@ -50,12 +50,18 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> Itera
 
 
 def beside(fn: Callable[..., R], *args, workers: int) -> Callable[[], R]:
-    """fn(*args) started on a thread of its own while the caller goes on (``workers`` > 1; 1: run when asked for);
-    returns what gives its result (waiting for it, raising its error). For work that draws no random numbers and
-    mostly releases the GIL (OpenCV's Haar searches) beside work that holds it."""
-    if workers <= 1:
-        return lambda: fn(*args)
+    """fn(*args) started on a thread of its own while the caller goes on (``workers`` > 1; 1: run when first asked
+    for, in the caller's thread); returns what gives its result, the same object each time (waiting for it,
+    raising its error). For work that draws no random numbers and mostly releases the GIL (OpenCV's Haar
+    searches) beside work that holds it."""
     got = {}
+    if workers <= 1:
+        def when_asked() -> R:  # once
+            if "result" not in got:
+                got["result"] = fn(*args)
+            return got["result"]
+
+        return when_asked
 
     def run():
         try:

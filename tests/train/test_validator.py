@@ -1,6 +1,7 @@
 """The landmark validator's learning (``aamtrack.train.validator``): synthetic data with a known answer."""
 
 import numpy as np
+import pytest
 
 from aamtrack.model import Validator
 from aamtrack.train.validator import DEGRADATIONS, degraded, landmark_validator_fit
@@ -250,6 +251,34 @@ def test_textured_noise_is_blotchy_at_the_stated_levels():
         assert step < 0.6, step
 
 
+def test_tiny_dim_negatives_found_ahead_are_the_ones_drawn_and_a_changed_sequence_is_caught():
+    """``TinyDimNegatives``: the far faces and noise frames come in photo order from their own seed, the noise
+    frames' Haar boxes found ahead (on another thread with workers) belong to the frames the validator draws; if
+    the draws change after the boxes were found (here a photo's labels: its far face is shrunk by another factor,
+    which draws another number of noise values), the validator is stopped rather than handed another frame's
+    boxes."""
+    from aamtrack.train.pipeline import TinyDimNegatives, TrainConfig
+
+    rng = np.random.default_rng(SEED)
+    gray = [rng.uniform(0, 255, (480, 560)).astype(np.float32) for _ in range(5)]
+    pts = rng.uniform(200, 300, (5, 68, 2))
+    pts[:, 36], pts[:, 45] = (230.0, 240.0), (260.0, 240.0)  # outer eye corners 30 px apart
+    boxes = np.tile([180.0, 180.0, 140.0, 140.0], (5, 1))
+    boxes[3] = np.nan  # no box: no far face from this photo
+    cfg = TrainConfig(dim_tiny=1)
+    one = list(TinyDimNegatives(gray, boxes, pts, 5, cfg).draws())
+    two = list(TinyDimNegatives(gray, boxes, pts, 5, cfg, workers=2).draws())
+    assert [d[0] for d in one] == [0, 1, 2, 4]
+    for a, b in zip(one, two, strict=True):
+        assert all(np.array_equal(x, y) for x, y in zip(a[1:], b[1:], strict=True))
+    changed = TinyDimNegatives(gray, boxes, pts, 5, cfg, workers=2)
+    changed.found()
+    changed.pts = pts.copy()
+    changed.pts[1, 45] = (380.0, 240.0)  # 150 px: shrunk 5 times as much
+    with pytest.raises(RuntimeError, match="photo 1"):
+        list(changed.draws())
+
+
 def test_textured_negatives_give_each_photo_the_same_frame_whichever_validator_asks_first():
     """``TexturedNegatives``: a photo's frame comes from its own seed (the landmark validator and the validator for
     soft faces ask in their own orders and must see the same frames), Haar's boxes on it are found once and lie in
@@ -257,7 +286,8 @@ def test_textured_negatives_give_each_photo_the_same_frame_whichever_validator_a
     from aamtrack.train.pipeline import TexturedNegatives, TrainConfig
 
     shapes = [(240, 200), (200, 240), (240, 240)] * 4
-    a, b = TexturedNegatives(TrainConfig(), shapes), TexturedNegatives(TrainConfig(), shapes)
+    # b's boxes found on a thread of its own (``train.workers.beside``) while this one goes on
+    a, b = TexturedNegatives(TrainConfig(), shapes), TexturedNegatives(TrainConfig(), shapes, workers=2)
     order = np.random.default_rng(SEED).permutation(len(shapes))
     first = [a.get(i) for i in range(len(shapes))]
     again = {i: b.get(i) for i in order}
@@ -269,5 +299,5 @@ def test_textured_negatives_give_each_photo_the_same_frame_whichever_validator_a
         assert np.all(boxes[:, :2] >= 0) and np.all(boxes[:, 0] + boxes[:, 2] <= shapes[i][1] + 1)
         assert np.all(boxes[:, 1] + boxes[:, 3] <= shapes[i][0] + 1)
         assert np.all(np.diff(boxes[:, 2] * boxes[:, 3]) <= 0)  # largest first
-    assert a.get(2)[1] is a.boxes[2]  # found once, kept
+    assert a.get(2)[1] is a.found()[2]  # found once, kept
     assert not np.array_equal(first[1][0][:200, :200], first[2][0][:200, :200])

@@ -92,6 +92,9 @@ def test_beside_runs_on_another_thread_and_hands_back_result_or_error():
     value, where = got()
     assert value == 7 and where != caller
     assert beside(lambda: threading.get_ident(), workers=1)() == caller  # one worker: run when asked, here
+    for workers in (1, 2):
+        made = beside(list, range(3), workers=workers)
+        assert made() is made()  # run once
 
     def fails():
         raise OSError("no such cascade")

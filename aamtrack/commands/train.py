@@ -46,8 +46,8 @@ def register(sub) -> None:
                         "give the same model up to floating-point rounding, and another seed shows how much a "
                         "result owes to them")
     p.add_argument("--workers", type=_workers, default=None,
-                   help="threads for the per-image work (default: every core this process may use); the model is "
-                        "the same with any number")
+                   help="threads for the per-image work (default: every core this process may use); any number "
+                        "gives the same model up to floating-point rounding")
     p.set_defaults(func=run)
 
 

@@ -5,6 +5,7 @@ couple, and the fit validator. Library code: progress goes through the ``progres
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -742,8 +743,6 @@ class TinyDimNegatives:
 
 def _digest(a: np.ndarray) -> bytes:
     """A short fingerprint of an array's bytes."""
-    import hashlib
-
     return hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8), digest_size=16).digest()
 
 
@@ -761,7 +760,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
     the soft landmark cascade took them (as ``Model.validator_for`` hands them to it), and from non-face images
     with a blurred one among them.
     The validator for dim faces also learns from far faces at their own scale and Haar's weakest hits on noise
-    (``TrainConfig.dim_tiny``: ``tiny_dim_copy``, ``noise_frame``); the landmark validator and the one for soft
+    (``TrainConfig.dim_tiny``: ``tiny``, a ``TinyDimNegatives``); the landmark validator and the one for soft
     faces from Haar's boxes on textured noise (``TrainConfig.textured``: ``textured``, a ``TexturedNegatives``
     both share).
     Returns (validator, the samples' labels, their held-out logits (``held_out_logits``) if ``held_out``, else

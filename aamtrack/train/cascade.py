@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels import compose, residual_batch
-from .workers import ordered_map
+from .workers import for_each
 
 log = logging.getLogger(__name__)
 
@@ -184,6 +184,5 @@ def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarr
             E[rows] = residual_batch(images[i], factors[i], shifts[i], shape3d, basis, starts[rows], mean, app,
                                      pix_vid, pix_bary, mode, np.empty((len(rows), len(mean)), np.float32))
 
-    for _ in ordered_map(fill, range(len(images)), workers):
-        pass
+    for_each(fill, range(len(images)), workers)
     return E

@@ -27,7 +27,7 @@ from ..landmark_cascade import (DescriptorSpec, LandmarkCascade, descriptors, pr
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
 from .cascade import ridge_fit
 from .shape2d import procrustes_mean
-from .workers import ordered_map
+from .workers import for_each
 
 log = logging.getLogger(__name__)
 
@@ -133,9 +133,8 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         frames = np.empty((len(X), 2, 2))
         with_shape = k >= len(halves) - shape_stages
         S = np.empty((len(X), 136), np.float32) if with_shape else None
-        for _ in ordered_map(partial(_read_starts, spec, ref, images, scales, X, owner, truth, halves[k], F, Y, frames,
-                                     S), np.array_split(np.arange(len(X)), max(1, len(X) // 64)), workers):
-            pass
+        for_each(partial(_read_starts, spec, ref, images, scales, X, owner, truth, halves[k], F, Y, frames, S),
+                 np.array_split(np.arange(len(X)), max(1, len(X) // 64)), workers)
         sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
         if like is None:
             mu = sample.mean(0)

@@ -799,8 +799,10 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         return [fitted(Levels(image, model.features), start(box), None, match) for box in at]
 
     tiny_draws = tiny.draws() if tiny is not None and dim_below > 0 else iter(())
+    far = next(tiny_draws, None)  # the next photo with a far face and a noise frame (``TinyDimNegatives.photos``)
 
     def photos():  # each photo's work, in the order it was always done: lists of calls, each giving samples
+        nonlocal far
         for i in range(n_orig):  # every random number drawn here, in this thread
             work = []
             truth = pts[i]
@@ -837,12 +839,11 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
                 if soft:
                     blanks.append(cv2.GaussianBlur(blanks[0], (0, 0), 4.0))
                 work.extend(partial(non_face, blank, [boxes[i]]) for blank in blanks)
-            if dim_below > 0 and tiny is not None and i % config.dim_tiny == 0 and np.isfinite(boxes[i, 0]):
-                j, img, box, truth_s, noise, at = next(tiny_draws)  # ``TinyDimNegatives``: drawn in photo order
-                if j != i:
-                    raise RuntimeError(f"photo {i}: the far face and noise frame drawn are photo {j}'s")
+            if far is not None and far[0] == i:  # drawn in photo order, after this photo's other samples
+                _, img, box, truth_s, noise, at = far
                 work.append(partial(fitted, Levels(img, model.features), start(box), truth_s, False))
                 work.append(partial(non_face, noise, at, False))  # its fits where Haar finds "faces": hard negatives
+                far = next(tiny_draws, None)
             if textured is not None and i % config.textured == 0:  # hard negatives (not the dim validator's: None)
                 work.append(lambda i=i: non_face(*textured.get(i), False))
             yield work

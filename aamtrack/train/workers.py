@@ -51,6 +51,13 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> Itera
                 f.cancel()
 
 
+def for_each(fn: Callable[[T], object], items: Iterable[T], workers: int) -> None:
+    """fn(item) for each of items, for what it writes (each item its own part of an output), as ``ordered_map``
+    runs it; returns when all are done."""
+    for _ in ordered_map(fn, items, workers):
+        pass
+
+
 def beside(fn: Callable[..., R], *args, workers: int) -> Callable[[], R]:
     """fn(*args) started on a thread of its own while the caller goes on (``workers`` > 1; 1: run when first asked
     for, in the caller's thread); returns what gives its result, the same object each time (waiting for it,

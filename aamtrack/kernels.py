@@ -149,6 +149,24 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
     return out
 
 
+def landmark_training_rows(image, scale: float, shift: float, starts, truth, ref, half: float, *, cells: int,
+                           cell: int, bins: int, floor: float, F, Y, frames, S=None) -> None:
+    """The landmark cascade's training rows of one image's starts (m, L, 2) float64 (frame pixels), labelled truth
+    (L, 2) (``aamtrack._kernels.patches._training_rows``), on the grey ``image`` (H, W) float32 resampled by
+    ``scale``: F (m, L, cells * cells * bins) float32 <- the descriptors on a patch of half side ``half`` in the
+    face frame of the reference shape ref (L, 2) (centred here), Y (m, 2 L) float64 <- the displacement to the
+    labels in that frame, frames (m, 2, 2) float64 <- the frames, and S (m, 2 L) float32 <- the starts' own shapes
+    (none: not read)."""
+    ref = np.asarray(ref, dtype=F64)
+    ref = ref - ref.mean(0)
+    with_shape = S is not None
+    S = _out(S, F32, 2, "S") if with_shape else np.empty((1, 2 * len(ref)), F32)
+    _p._training_rows(_in(image, F32, 2, "image"), float(scale), float(shift), _in(starts, F64, 3, "starts"),
+                      _in(truth, F64, 2, "truth"), _in(ref, F64, 2, "ref"), float(half), int(cells), int(cell),
+                      int(bins), float(floor), with_shape, _out(F, F32, 3, "F"), _out(Y, F64, 2, "Y"),
+                      _out(frames, F64, 3, "frames"), S)
+
+
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, quantised, scales,
                      expand, biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int,
                      floor: float, feat, shape, prior, repeats: int = 0) -> np.ndarray:

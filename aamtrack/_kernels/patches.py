@@ -317,3 +317,33 @@ def _shape_in_frame(pts, ref, a, c, mx, my, out):
         out[2 * li] = (dx * a + dy * c) / det - ref[li, 0]
         out[2 * li + 1] = (dy * a - dx * c) / det - ref[li, 1]
     return True
+
+
+@numba.njit(**NJIT)
+def _training_rows(img, scale, shift, X, truth, ref, half, cells, cell, bins, floor, with_shape, F, Y, frames, S):
+    """The landmark cascade's training rows of the starts X (m, L, 2) (frame pixels) of one image, whose labels are
+    truth (L, 2): per start, the similarity M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to it
+    (``_similarity``), into frames[m] (2, 2); its descriptors on a grid of step 2 half / (cells * cell + 1)
+    reference units (``_descriptors``) into F[m] (L, cells * cells * bins) float32; the displacement to the labels
+    in the reference frame, (truth - X[m]) M^-1, into Y[m] (2 L,) (x_0, y_0, x_1, ...); and with ``with_shape``
+    the start's own shape (``_shape_in_frame``) into S[m] (2 L,) float32. What ``train.landmarks`` did per start
+    in numpy (``similarity_to``, ``descriptors``, ``shape_features``), the same to rounding."""
+    L = X.shape[1]
+    n2 = _squared_norm(ref)
+    step = 2.0 * half / (cells * cell + 1)
+    for m in range(X.shape[0]):
+        pts = X[m]
+        a, c, mx, my = _similarity(pts, ref, n2)
+        _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor, F[m])
+        det = a * a + c * c
+        for li in range(L):
+            dx = truth[li, 0] - pts[li, 0]
+            dy = truth[li, 1] - pts[li, 1]
+            Y[m, 2 * li] = (dx * a + dy * c) / det
+            Y[m, 2 * li + 1] = (dy * a - dx * c) / det
+        frames[m, 0, 0] = a
+        frames[m, 0, 1] = c
+        frames[m, 1, 0] = -c
+        frames[m, 1, 1] = a
+        if with_shape:
+            _shape_in_frame(pts, ref, a, c, mx, my, S[m])

@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import logging
 from functools import partial
-
 import numpy as np
 
-from ..landmark_cascade import (DescriptorSpec, LandmarkCascade, descriptors, project_descriptors, shape_features,
-                                similarity_to)
+from ..landmark_cascade import DescriptorSpec, LandmarkCascade, project_descriptors, similarity_to, training_rows
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
 from .cascade import ridge_fit
 from .shape2d import procrustes_mean
@@ -71,20 +69,18 @@ def made_starts(truth: np.ndarray, ref: np.ndarray, library: np.ndarray, n_per: 
 
 
 def _read_starts(spec: DescriptorSpec, ref: np.ndarray, images: list, scales: list, X: np.ndarray,
-                 owner: np.ndarray, truth: np.ndarray, half: float, F: np.ndarray, Y: np.ndarray, frames: np.ndarray,
-                 S: np.ndarray | None, rows: np.ndarray) -> None:
-    """For each start m of ``rows``: its descriptors F[m] on a patch of half side ``half``, the displacement to the
-    label Y[m] and the face frame frames[m] (both in reference units), and with S, its shape S[m]. Each row is the
-    start's own: chunks of rows may be read on several threads."""
-    buf = np.empty((68, spec.size), np.float32)
-    for m in rows:
-        i = owner[m]
-        M, _ = similarity_to(ref, X[m])
-        F[m] = descriptors(spec, images[i], scales[i], X[m], half, M, buf)
-        Y[m] = ((truth[i] - X[m]) @ np.linalg.inv(M)).ravel()
-        frames[m] = M
-        if S is not None:
-            S[m] = shape_features(ref, X[m], M)
+                 truth: np.ndarray, half: float, F: np.ndarray, Y: np.ndarray, frames: np.ndarray,
+                 S: np.ndarray | None, item: tuple) -> None:
+    """For item (image, rows): the rows ``rows`` (the starts of image ``image``) of F (descriptors on a patch of half
+    side ``half``), Y (the displacement to the label), frames (the face frame) and with S, the shape, in one compiled
+    call (``landmark_cascade.training_rows``). Each image's rows are its own: images may be read on several
+    threads."""
+    image, rows = item
+    f, y, fr, s = training_rows(spec, images[image], scales[image], X[rows], truth[image], ref, half,
+                                with_shape=S is not None)
+    F[rows], Y[rows], frames[rows] = f, y, fr
+    if S is not None:
+        S[rows] = s
 
 
 def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: np.ndarray, fit_owner: np.ndarray,
@@ -124,6 +120,9 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
     X = np.concatenate([np.array([f for _, f in real]).reshape(-1, 68, 2), made.reshape(-1, 68, 2)])
     log.info("landmark cascade: %d starts (%d the search's own), %d library errors, median NME %.4f", len(X),
              len(real), len(lib), float(np.median(nme(X, truth[owner]))))
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(len(truth) + 1))
+    by_image = [(i, order[bounds[i]:bounds[i + 1]]) for i in range(len(truth)) if bounds[i + 1] > bounds[i]]
     per = spec.size
     d = min(n_components, per)
     Rs, Ss, bs, means, bases, record = [], [], [], [], [], []
@@ -133,8 +132,8 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
         frames = np.empty((len(X), 2, 2))
         with_shape = k >= len(halves) - shape_stages
         S = np.empty((len(X), 136), np.float32) if with_shape else None
-        for_each(partial(_read_starts, spec, ref, images, scales, X, owner, truth, halves[k], F, Y, frames, S),
-                 np.array_split(np.arange(len(X)), max(1, len(X) // 64)), workers)
+        for_each(partial(_read_starts, spec, ref, images, scales, X, truth, halves[k], F, Y, frames, S), by_image,
+                 workers)
         sample = F.reshape(-1, per)[rng.permutation(len(F) * 68)[:50000]].astype(np.float64)
         if like is None:
             mu = sample.mean(0)

@@ -157,3 +157,27 @@ def test_low_rank_regressors_are_the_best_approximation_and_the_kernel_expands_t
     Ut, _ = factorise(R, 64)
     _expand(Ut[0], t, out)
     assert np.abs(out - Ut[0].T.astype(np.float64) @ t).max() < 1e-12 * np.abs(Ut[0]).sum(0).max() * np.abs(t).max()
+
+
+def test_training_rows_match_the_per_start_numpy_reading():
+    """The cascade's training rows of one image in one compiled call against the obvious per-start numpy:
+    ``similarity_to``, ``descriptors``, (truth - start) M^-1 and ``shape_features``."""
+    from aamtrack.landmark_cascade import DescriptorSpec, descriptors, shape_features, similarity_to, training_rows
+
+    rng = np.random.default_rng(SEED)
+    image = (rng.random((120, 140)) * 255).astype(np.float32)
+    image = (image + np.roll(image, 1, 0) + np.roll(image, 1, 1)) / 3
+    ref = rng.normal(0.0, 0.4, (68, 2))
+    ref -= ref.mean(0)
+    truth = ref @ (30 * np.array([[np.cos(0.2), np.sin(0.2)], [-np.sin(0.2), np.cos(0.2)]])) + [70, 60]
+    starts = truth + rng.normal(0.0, 2.0, (5, 68, 2))  # some near the border: clamped samples too
+    spec = DescriptorSpec()
+    F, Y, frames, S = training_rows(spec, image, 0.9, starts, truth, ref, 0.22, with_shape=True)
+    _, Y2, _, S2 = training_rows(spec, image, 0.9, starts, truth, ref, 0.22, with_shape=False)
+    assert S2 is None and np.array_equal(Y, Y2)
+    for m, X in enumerate(starts):
+        M, _ = similarity_to(ref, X)
+        assert np.abs(frames[m] - M).max() < 1e-12
+        assert np.abs(F[m] - descriptors(spec, image, 0.9, X, 0.22, M)).max() < 1e-5  # float32 descriptors
+        assert np.abs(Y[m] - ((truth - X) @ np.linalg.inv(M)).ravel()).max() < 1e-10
+        assert np.abs(S[m] - shape_features(ref, X, M)).max() < 1e-6  # float32

@@ -42,6 +42,15 @@ class Search(NamedTuple):
     edge: bool = False
 
 
+def box_order(boxes: np.ndarray, hits: np.ndarray | None = None) -> np.ndarray:
+    """Indices that order boxes (n, 4) (x, y, w, h) largest first, or with hits (n,) most hits first and then
+    largest, ties broken by position (left first, then top): one order whatever order OpenCV's threads return
+    the boxes in (sorted by area alone, equal boxes came in any order: the suspect when two trainings differed
+    in one textured negative, 2026-12-01)."""
+    keys = (boxes[:, 1], boxes[:, 0], -boxes[:, 2] * boxes[:, 3])
+    return np.lexsort(keys if hits is None else (*keys, -np.asarray(hits)))
+
+
 class HaarDetector:
     """``detect(gray)`` -> (x, y, w, h) float box of the largest face in pixels, or None; ``find(gray)`` also
     looks for faces rolled by about 30 degrees (the frontal cascade misses them), in turned copies of the frame,
@@ -109,9 +118,8 @@ class HaarDetector:
         boxes = np.asarray(boxes, float)
         boxes[:, :2] -= pad
         boxes /= f
-        if smallest:  # strongest first: at the smallest sizes the background gives boxes too, with fewer hits
-            return boxes[np.lexsort((-boxes[:, 2] * boxes[:, 3], -np.asarray(hits).ravel()))]
-        return boxes[np.argsort(-boxes[:, 2] * boxes[:, 3])]
+        # strongest first with ``smallest``: at the smallest sizes the background gives boxes too, with fewer hits
+        return boxes[box_order(boxes, np.asarray(hits, float).ravel() if smallest else None)]
 
     def detect(self, gray: np.ndarray):
         boxes = self.detect_all(gray)

@@ -458,3 +458,22 @@ def _sample_face_frame() -> np.ndarray:
 
     with open_frames(Path(__file__).resolve().parents[2] / "samples" / "cap12_first12s.mp4") as frames:
         return next(iter(frames)).image
+
+
+def test_box_order_is_one_order_whatever_order_the_boxes_come_in():
+    """Largest first (or most hits first, then largest), equal ones by position: the same boxes in any input
+    order give the same list."""
+    from aamtrack.detector import box_order
+
+    rng = np.random.default_rng(5)
+    sizes = rng.choice([20.0, 30.0, 40.0], 30)  # many of one size: ties
+    boxes = np.column_stack([rng.integers(0, 50, 30), rng.integers(0, 50, 30), sizes, sizes]).astype(float)
+    hits = rng.integers(1, 4, 30).astype(float)
+    first = boxes[box_order(boxes)]
+    assert np.all(np.diff(first[:, 2] * first[:, 3]) <= 0)  # largest first
+    first_hits = np.column_stack([boxes, hits])[box_order(boxes, hits)]
+    assert np.all(np.diff(first_hits[:, 4]) <= 0)  # most hits first
+    for _ in range(5):
+        p = rng.permutation(30)
+        assert np.array_equal(boxes[p][box_order(boxes[p])], first)
+        assert np.array_equal(np.column_stack([boxes, hits])[p][box_order(boxes[p], hits[p])], first_hits)

@@ -179,6 +179,14 @@ def _ridge_dual(X: np.ndarray, Y: np.ndarray, mask: np.ndarray, alpha: float) ->
     return R, ym - xm @ R.T
 
 
+def rows_by_owner(owner: np.ndarray, n: int) -> list[np.ndarray]:
+    """Each of n images' rows (ascending) of owner (M,) int, the image each row belongs to: work per image, each
+    image's rows its own (threads may fill them, ``train.workers``)."""
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(n + 1))
+    return [order[bounds[i]:bounds[i + 1]] for i in range(n)]
+
+
 def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarray, shape3d: np.ndarray,
                     basis: np.ndarray, mean: np.ndarray, app: np.ndarray, pix_vid: np.ndarray,
                     pix_bary: np.ndarray, mode: int, workers: int = 1) -> np.ndarray:
@@ -186,11 +194,10 @@ def residual_matrix(images, factors, shifts, starts: np.ndarray, owner: np.ndarr
     feature image (C, h, w) resampled by ``factors[i]``, frame pixel x at ``factors[i] * x + shifts[i]``
     (``aamtrack.imaging.level_shift``); the images' rows on up to ``workers`` threads (``train.workers``)."""
     E = np.empty((len(starts), len(mean)), np.float32)
-    order = np.argsort(owner, kind="stable")
-    bounds = np.searchsorted(owner[order], np.arange(len(images) + 1))
+    rows_of = rows_by_owner(owner, len(images))
 
     def fill(i):  # image i's rows of E, its own
-        rows = order[bounds[i]:bounds[i + 1]]
+        rows = rows_of[i]
         if len(rows):
             E[rows] = residual_batch(images[i], factors[i], shifts[i], shape3d, basis, starts[rows], mean, app,
                                      pix_vid, pix_bary, mode, np.empty((len(rows), len(mean)), np.float32))

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import logging
 from functools import partial
+
 import numpy as np
 
 from ..landmark_cascade import DescriptorSpec, LandmarkCascade, project_descriptors, similarity_to, training_rows
 from ..metrics import IBUG_LEFT_EYE_OUTER, IBUG_RIGHT_EYE_OUTER, nme
-from .cascade import ridge_fit
+from .cascade import ridge_fit, rows_by_owner
 from .shape2d import procrustes_mean
 from .workers import for_each
 
@@ -120,9 +121,7 @@ def learn_landmark_cascade(images: list, scales: list, truth: np.ndarray, fits: 
     X = np.concatenate([np.array([f for _, f in real]).reshape(-1, 68, 2), made.reshape(-1, 68, 2)])
     log.info("landmark cascade: %d starts (%d the search's own), %d library errors, median NME %.4f", len(X),
              len(real), len(lib), float(np.median(nme(X, truth[owner]))))
-    order = np.argsort(owner, kind="stable")
-    bounds = np.searchsorted(owner[order], np.arange(len(truth) + 1))
-    by_image = [(i, order[bounds[i]:bounds[i + 1]]) for i in range(len(truth)) if bounds[i + 1] > bounds[i]]
+    by_image = [(i, rows) for i, rows in enumerate(rows_by_owner(owner, len(truth))) if len(rows)]
     per = spec.size
     d = min(n_components, per)
     Rs, Ss, bs, means, bases, record = [], [], [], [], [], []

@@ -9,6 +9,7 @@ import pytest
 from faults import files_below
 
 import synth
+from notices import stderr_lines
 from aamtrack.cli import main
 from aamtrack.commands.batch import BATCH_COLUMNS, DASK_HINT, read_batch_csv
 from aamtrack.commands.run import track_file
@@ -47,7 +48,7 @@ def rows_by_name(out) -> dict:
 def test_folder_with_a_corrupt_video_jobs_2(tmp_path, folder, model_file, capsys):
     out = tmp_path / "out"
     assert run(folder, "--model", model_file, "--out-dir", out, "--jobs", 2) == 1  # one input failed
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].startswith("aamtrack run: error:") and "broken.mp4" in err[0], err
     assert "not a readable video" in err[0]
     with open(out / "batch.csv", encoding="utf-8") as f:
@@ -100,7 +101,7 @@ def test_a_member_without_a_face_fails_and_again_on_a_rerun(tmp_path, model_file
     out = tmp_path / "out"
     for attempt in ("first", "re-run"):
         assert run(folder, "--model", model_file, "--out-dir", out, "--jobs", 1) == 1, attempt
-        err = capsys.readouterr().err.strip().splitlines()
+        err = stderr_lines(capsys)
         assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), (attempt, err)
         assert err[0].endswith("wall.avi: no face found in any of its 4 frames"), err
         rows = rows_by_name(out)
@@ -196,14 +197,14 @@ def test_inputs_sharing_a_stem_get_their_own_folders(tmp_path, model_file):
 
 def test_several_inputs_need_an_out_dir(tmp_path, folder, model_file, capsys):
     assert run(folder / "clip0.avi", folder / "clip1.avi", "--model", model_file) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and "need --out-dir" in err[0]
 
 
 def test_scheduler_without_dask_says_how_to_install(tmp_path, folder, model_file, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask", None)  # as if not installed: import fails
     assert run(folder, "--model", model_file, "--out-dir", tmp_path / "o", "--scheduler", "tcp://127.0.0.1:1") == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and DASK_HINT in err[0]
     assert not (tmp_path / "o").exists()
 
@@ -228,7 +229,7 @@ def test_decoder_failing_mid_video_leaves_nothing(tmp_path, folder, model_file, 
     monkeypatch.setattr(frames_mod.VideoFrames, "_read", read_then_fail)
     out = tmp_path / "out"
     assert run(folder / "clip0.avi", "--model", model_file, "--out-dir", out, "--video", "--pts") == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].endswith("decoder failed at frame 5"), err
     assert not out.exists()
 
@@ -247,7 +248,7 @@ def test_grey_frames_give_the_same_rows_as_colour(tmp_path, folder, model_file):
 ])
 def test_bad_batch_options_are_one_line(tmp_path, folder, model_file, capsys, args, needle):
     assert run(folder, "--model", model_file, "--out-dir", tmp_path / "o", *args) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and needle in err[0], err
     assert not (tmp_path / "o").exists()
 

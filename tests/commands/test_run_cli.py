@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
+from notices import stderr_lines
 from aamtrack.cli import main
 from aamtrack.io.csvout import read_tracking_csv
 import synth
@@ -21,7 +22,7 @@ def video(tmp_path_factory):
 
 
 def _err_line(capsys, *needles):
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), err
     for n in needles:
         assert n in err[0]
@@ -66,7 +67,7 @@ def test_video_without_a_face(tmp_path, model_file, capsys):
     synth.write_video(tmp_path / "empty_room.avi", frames)
     out = tmp_path / "out"
     assert main(["run", str(tmp_path / "empty_room.avi"), "--model", str(model_file), "--out-dir", str(out)]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), err
     assert err[0].endswith("empty_room.avi: no face found in any of its 6 frames"), err
     assert not out.exists()

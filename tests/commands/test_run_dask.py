@@ -4,6 +4,7 @@ two worker processes on this machine, not a mock) give the same CSVs and batch r
 from __future__ import annotations
 
 import pytest
+from notices import stderr_lines
 from test_run_batch import make_folder, rows_by_name, run
 
 distributed = pytest.importorskip("dask.distributed", reason="needs dask[distributed]: pip install 'aamtrack[dask]'")
@@ -18,7 +19,7 @@ def test_scheduler_on_a_local_cluster_gives_the_same_csvs_as_jobs(tmp_path, mode
                                   silence_logs=40) as cluster:
         out = tmp_path / "dask"
         assert run(folder, "--model", model_file, "--out-dir", out, "--scheduler", cluster.scheduler_address) == 1
-        err = capsys.readouterr().err.strip().splitlines()
+        err = stderr_lines(capsys)
         errors = [e for e in err if e.startswith("aamtrack run: error:")]  # (workers may log FFmpeg's own lines)
         assert len(errors) == 1 and "broken.mp4" in errors[0], err
         rows, expected = rows_by_name(out), rows_by_name(local)

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 from faults import disk_full, files_below, tiny_tmpfs
+from notices import KERNEL_NOTICES, stderr_lines
 
 import synth
 from aamtrack.cli import main
@@ -31,9 +32,7 @@ def video(tmp_path_factory):
 
 
 def one_error_line(capsys, *needles) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    # a fresh install's first run in this process also says it compiles the kernels (two notice lines)
-    err = [line for line in err if not line.startswith(("compiling kernels", "kernels ready"))]
+    err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), err
     for n in needles:
         assert n in err[0], err[0]
@@ -165,7 +164,7 @@ def test_overlay_on_a_full_tmpfs_leaves_nothing(tmp_path, video, model_file, cap
         code = run(video, "--model", model_file, "--out-dir", out, "--video")
         left = files_below(out)
     assert code == 1
-    err = capsys.readouterr().err.strip().splitlines()  # the CSV or the overlay fills the disk first
+    err = stderr_lines(capsys)  # the CSV or the overlay fills the disk first
     assert len(err) == 1 and ("no space left" in err[0] or "could not be written completely" in err[0]), err
     assert left == []
 
@@ -227,8 +226,8 @@ def test_noise_of_ffmpeg_is_silenced(tmp_path, model_file):
     env = {k: v for k, v in os.environ.items() if not k.startswith("OPENCV_")}
     quiet = subprocess.run(cmd, capture_output=True, text=True, env=env)
     assert quiet.returncode == 0, quiet.stderr
-    own = ("WARNING:", "aamtrack run: warning", "compiling kernels", "kernels ready")  # the last two: a slow
-    # cache load on a busy machine (3.2 s against the 1.5 s notice, seen once under four other jobs)
+    own = ("WARNING:", "aamtrack run: warning", *KERNEL_NOTICES)  # the kernels' notices: a slow cache load on a
+    # busy machine (3.2 s against the 1.5 s notice, seen once under four other jobs)
     noisy = [s for s in quiet.stderr.splitlines() if not s.startswith(own)]
     assert noisy == [], noisy
     verbose = subprocess.run(cmd[:3] + ["-v"] + cmd[3:], capture_output=True, text=True, env=env)

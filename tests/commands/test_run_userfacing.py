@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import synth
+from notices import stderr_lines
 from aamtrack.cli import main
 from aamtrack.commands import run as run_cmd
 from aamtrack.io.csvout import read_tracking_csv
@@ -57,7 +58,7 @@ def test_report_without_matplotlib_writes_nothing(tmp_path, away_video, model_fi
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     out = tmp_path / "out"
     assert main(["run", str(away_video[0]), "--model", str(model_file), "--out-dir", str(out), "--report"]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and "pip install 'aamtrack[plot]'" in err[0]
     assert not out.exists()
 
@@ -66,7 +67,7 @@ def test_report_without_matplotlib_writes_nothing(tmp_path, away_video, model_fi
 def test_bad_smoothing_parameters(tmp_path, away_video, model_file, capsys, option):
     assert main(["run", str(away_video[0]), "--model", str(model_file), "--out-dir", str(tmp_path / "o"),
                  option, "-1"]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    err = stderr_lines(capsys)
     assert len(err) == 1 and option in err[0] and "-1" in err[0]
     assert not (tmp_path / "o").exists()
 

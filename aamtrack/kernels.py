@@ -40,6 +40,14 @@ def _out(a, dtype, ndim: int, name: str) -> np.ndarray:
     return a
 
 
+def _patch_image(image) -> np.ndarray:
+    """The grey image the descriptor kernels read (``_in``), whose pixels they index in int32."""
+    shape = np.shape(image)
+    if len(shape) == 2 and shape[0] * shape[1] >= 2**31 - 2 * shape[1]:  # (before any copy of it)
+        raise ValueError(f"image: {shape[1]}x{shape[0]} is too large for the descriptor kernels")
+    return _in(image, F32, 2, "image")
+
+
 def _model(shape3d, basis, pix_vid, pix_bary):
     return (_in(shape3d, F64, 2, "shape3d"), _in(basis, F64, 3, "basis"), _in(pix_vid, I32, 2, "pix_vid"),
             _in(pix_bary, F32, 2, "pix_bary"))
@@ -143,7 +151,7 @@ def landmark_descriptors(image, scale: float, shift: float, pts, frame, *, cells
     (``aamtrack._kernels.patches``) on the grey ``image`` (H, W) float32 resampled by ``scale``. ``frame`` (2, 2):
     a grid step (du, dv) lies at (du, dv) @ frame frame pixels."""
     f = np.asarray(frame, dtype=F64)
-    _p._descriptors(_in(image, F32, 2, "image"), _in(pts, F64, 2, "pts"), float(scale), float(shift), f[0, 0],
+    _p._descriptors(_patch_image(image), _in(pts, F64, 2, "pts"), float(scale), float(shift), f[0, 0],
                     f[1, 0], f[0, 1], f[1, 1], int(cells), int(cell), int(bins), float(floor),
                     _out(out, F32, 2, "out"))
     return out
@@ -161,7 +169,7 @@ def landmark_training_rows(image, scale: float, shift: float, starts, truth, ref
     ref = ref - ref.mean(0)
     with_shape = S is not None
     S = _out(S, F32, 2, "S") if with_shape else np.empty((1, 2 * len(ref)), F32)
-    _p._training_rows(_in(image, F32, 2, "image"), float(scale), float(shift), _in(starts, F64, 3, "starts"),
+    _p._training_rows(_patch_image(image), float(scale), float(shift), _in(starts, F64, 3, "starts"),
                       _in(truth, F64, 2, "truth"), _in(ref, F64, 2, "ref"), float(half), int(cells), int(cell),
                       int(bins), float(floor), with_shape, _out(F, F32, 3, "F"), _out(Y, F64, 2, "Y"),
                       _out(frames, F64, 3, "frames"), S)
@@ -178,7 +186,7 @@ def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_
     (L, cells * cells * bins) and shape (2 L,) float32 scratch;
     prior (L, 2) float64 <- the shape term's part of the move. Returns (L, d) float32: the last stage's projected
     descriptors."""
-    return _p._landmark_cascade(_in(image, F32, 2, "image"), float(scale), float(shift), _out(pts, F64, 2, "pts"),
+    return _p._landmark_cascade(_patch_image(image), float(scale), float(shift), _out(pts, F64, 2, "pts"),
                          _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
                          _in(basis, F32, 3, "basis"), _in(quantised, I16, 3, "quantised"),
                          _in(scales, F32, 2, "scales"), _in(expand, F32, 3, "expand"),

@@ -1,6 +1,7 @@
 """The landmark descriptor kernel against a slow, obvious numpy reference, and the invariances it is built for."""
 
 import numpy as np
+import pytest
 
 from aamtrack._kernels.patches import CLIP
 from aamtrack.kernels import landmark_descriptors
@@ -181,3 +182,27 @@ def test_training_rows_match_the_per_start_numpy_reading():
         assert np.abs(F[m] - descriptors(spec, image, 0.9, X, 0.22, M)).max() < 1e-5  # float32 descriptors
         assert np.abs(Y[m] - ((truth - X) @ np.linalg.inv(M)).ravel()).max() < 1e-10
         assert np.abs(S[m] - shape_features(ref, X, M)).max() < 1e-6  # float32
+
+
+def test_grids_along_the_image_border_match_the_reference():
+    """Grids that end just inside the last pixel (read without clamping, in float32) or just past it (clamped),
+    on every side: the same descriptors as the reference, and nothing read outside the image."""
+    rng = np.random.default_rng(SEED + 1)
+    image = (rng.random((40, 50)) * 255).astype(np.float32)
+    frame = 0.9 * np.eye(2)
+    half = 0.5 * (3 * 3 + 1) * 0.9  # the grid's half extent (pixels) at scale 1: c0 steps of 0.9
+    pts = []
+    for gap in (0.02, 0.005, 0.0, -0.005):  # how far inside the border the grid's last samples lie
+        pts += [[half + gap, 20.0], [49.0 - half - gap, 20.0], [25.0, half + gap], [25.0, 39.0 - half - gap]]
+    pts = np.asarray(pts)
+    out = np.empty((len(pts), 72), np.float32)
+    landmark_descriptors(image, 1.0, 0.0, pts, frame, cells=3, cell=3, bins=8, floor=1.0, out=out)
+    ref = reference_descriptors(image.astype(np.float64), 1.0, 0.0, pts, frame, 3, 3, 8, 1.0)
+    assert np.abs(out - ref).max() < 1e-4  # float32 sums of the same terms
+
+
+def test_an_image_too_large_for_int32_pixel_indices_is_refused():
+    huge = np.broadcast_to(np.float32(0.0), (50_000, 50_000))  # (no memory behind it: refused before a copy)
+    with pytest.raises(ValueError, match="too large"):
+        landmark_descriptors(huge, 1.0, 0.0, np.zeros((1, 2)), np.eye(2), cells=3, cell=3, bins=8, floor=1.0,
+                             out=np.empty((1, 72), np.float32))

@@ -206,3 +206,16 @@ def test_run_aamtrack_video_and_stills(synth_model, tmp_path):
     assert stills.confidence[1] == 0.0 and (stills.confidence[[0, 2]] >= 0.5).all()  # accepted fits only
     err = np.linalg.norm(stills.landmarks[[0, 2]] - truth[[0, 3]], axis=-1).mean()
     assert err < 1.0  # from a Haar box alone, within a pixel on the model's own faces
+
+
+@pytest.mark.parametrize("what", ["stills", "video", "model"])
+def test_a_missing_input_is_one_line_before_any_work(tmp_path, capsys, what):
+    from accuracy import main
+
+    args = {"stills": ["--stills", str(tmp_path / "no_such_folder"), "--video", "none"],
+            "video": ["--stills", "none", "--video", str(tmp_path / "no_such.mp4")],
+            "model": ["--models", str(tmp_path / "no_such.npz"), "--stills", "none", "--video", "none"]}[what]
+    assert main(args + ["--json", str(tmp_path / "out.json")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("accuracy: ") and "no_such" in err[0]
+    assert not (tmp_path / "out.json").exists()

@@ -6,6 +6,7 @@ import json
 import math
 import os
 import platform
+import sys
 from pathlib import Path
 
 
@@ -41,3 +42,17 @@ def write_json(path: Path, result, *, indent: int = 1) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(json_safe(result), indent=indent) + "\n")
     tmp.replace(path)
+
+
+def run_script(main, name: str) -> None:
+    """``sys.exit(main())`` for a benchmark script called ``name``, with the package's input errors (a missing or
+    unreadable file, a bad model, ``AamtrackError``) and the system's (``OSError``) as one line on stderr and exit
+    status 1 instead of a traceback; anything else (a bug) still shows its traceback."""
+    from aamtrack.errors import AamtrackError
+
+    try:
+        code = main()
+    except (AamtrackError, OSError) as exc:
+        print(f"{name}: {exc}", file=sys.stderr)
+        code = 1
+    sys.exit(code)

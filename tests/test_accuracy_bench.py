@@ -219,3 +219,25 @@ def test_a_missing_input_is_one_line_before_any_work(tmp_path, capsys, what):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("accuracy: ") and "no_such" in err[0]
     assert not (tmp_path / "out.json").exists()
+
+
+def test_benchmark_scripts_turn_input_errors_into_one_line_and_leave_bugs_alone(capsys):
+    from _common import run_script
+
+    from aamtrack.errors import ModelFileError
+
+    def bad_input():
+        raise ModelFileError("/x/m.npz: no such model file")
+
+    with pytest.raises(SystemExit) as stop:
+        run_script(bad_input, "bench")
+    assert stop.value.code == 1 and capsys.readouterr().err == "bench: /x/m.npz: no such model file\n"
+    with pytest.raises(SystemExit) as stop:
+        run_script(lambda: 0, "bench")
+    assert stop.value.code == 0
+
+    def bug():
+        raise ZeroDivisionError("a bug keeps its traceback")
+
+    with pytest.raises(ZeroDivisionError):
+        run_script(bug, "bench")

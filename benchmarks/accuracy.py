@@ -507,20 +507,14 @@ def main(argv=None) -> int:
     def say(text):
         print(text, file=sys.stderr, flush=True)
 
-    from aamtrack.errors import AamtrackError
     from aamtrack.model import load_model
 
-    stills = None
-    try:  # every input read before any work: a bad one is one line, not a traceback after minutes
-        for model in args.models:
-            load_model(model)
-        if str(args.stills) != "none":
-            stills = load_stills(args.stills, args.limit)
-        if str(args.video) != "none" and not args.video.is_file():
-            raise FileNotFoundError(f"{args.video}: no such video")
-    except (AamtrackError, OSError, ValueError) as exc:
-        print(f"accuracy: {exc}", file=sys.stderr)
-        return 1
+    # every input read before any work (a bad one is then one line, ``_common.run_script``, not minutes in)
+    for model in args.models:
+        load_model(model)
+    stills = load_stills(args.stills, args.limit) if str(args.stills) != "none" else None
+    if str(args.video) != "none" and not args.video.is_file():
+        raise FileNotFoundError(f"{args.video}: no such video")
 
     machine = machine_name()
     result = {"machine": machine, "models": [str(m) for m in args.models], "fail_at": FAIL_NME}

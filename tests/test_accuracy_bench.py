@@ -215,10 +215,15 @@ def test_a_missing_input_is_one_line_before_any_work(tmp_path, capsys, what):
     args = {"stills": ["--stills", str(tmp_path / "no_such_folder"), "--video", "none"],
             "video": ["--stills", "none", "--video", str(tmp_path / "no_such.mp4")],
             "model": ["--models", str(tmp_path / "no_such.npz"), "--stills", "none", "--video", "none"]}[what]
-    assert main(args + ["--json", str(tmp_path / "out.json")]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    from _common import run_script
+
+    with pytest.raises(SystemExit) as stop:
+        run_script(lambda: main(args + ["--json", str(tmp_path / "out.json")]), "accuracy")
+    assert stop.value.code == 1
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("accuracy: ") and "no_such" in err[0]
-    assert not (tmp_path / "out.json").exists()
+    assert "machine" not in captured.out and not (tmp_path / "out.json").exists()  # before any work
 
 
 def test_benchmark_scripts_turn_input_errors_into_one_line_and_leave_bugs_alone(capsys):

@@ -101,7 +101,7 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
     gys = np.empty(n * n, np.float32)
     mags = np.empty(n * n, np.float32)  # float32 as the samples: the orientation pass vectorises twice as wide
     bs = np.empty(n * n, np.float32)
-    base_of = np.empty(n * n, np.int64)  # first bin of each interior sample's cell
+    base_of = np.empty(n * n, np.int32)  # first bin of each interior sample's cell
     for i in range(n):
         for j in range(n):
             base_of[i * n + j] = ((i // cell) * cells + j // cell) * bins
@@ -183,8 +183,8 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
             b0 = b0 - np.int32(bins) if b0 >= bins else b0
             b1 = b0 + np.int32(1)
             b1 = np.int32(0) if b1 == bins else b1
-            i0s[k] = np.int32(base_of[k]) + b0
-            i1s[k] = np.int32(base_of[k]) + b1
+            i0s[k] = base_of[k] + b0
+            i1s[k] = base_of[k] + b1
             w1s[k] = mags[k] * f
             w0s[k] = mags[k] - w1s[k]
         for k in range(n * n):

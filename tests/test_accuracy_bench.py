@@ -10,7 +10,8 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from accuracy import AamRun, jitter_vs_reference, run_aamtrack, summarize_stills, video_scores  # noqa: E402
+from _common import run_script  # noqa: E402
+from accuracy import AamRun, jitter_vs_reference, main, run_aamtrack, summarize_stills, video_scores  # noqa: E402
 from conftest import SEED  # noqa: E402
 
 
@@ -210,13 +211,9 @@ def test_run_aamtrack_video_and_stills(synth_model, tmp_path):
 
 @pytest.mark.parametrize("what", ["stills", "video", "model"])
 def test_a_missing_input_is_one_line_before_any_work(tmp_path, capsys, what):
-    from accuracy import main
-
     args = {"stills": ["--stills", str(tmp_path / "no_such_folder"), "--video", "none"],
             "video": ["--stills", "none", "--video", str(tmp_path / "no_such.mp4")],
             "model": ["--models", str(tmp_path / "no_such.npz"), "--stills", "none", "--video", "none"]}[what]
-    from _common import run_script
-
     with pytest.raises(SystemExit) as stop:
         run_script(lambda: main(args + ["--json", str(tmp_path / "out.json")]), "accuracy")
     assert stop.value.code == 1
@@ -227,8 +224,6 @@ def test_a_missing_input_is_one_line_before_any_work(tmp_path, capsys, what):
 
 
 def test_benchmark_scripts_turn_input_errors_into_one_line_and_leave_bugs_alone(capsys):
-    from _common import run_script
-
     from aamtrack.errors import ModelFileError
 
     def bad_input():

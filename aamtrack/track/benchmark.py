@@ -27,10 +27,18 @@ from .tracker import Tracker
 
 
 def warmup(tracker: Tracker) -> float:
-    """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds."""
+    """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds. A fit of a blank image
+    runs the search's and the landmark cascade's; what a tracked frame does with a fit then (its next start, the
+    person's shape estimate, the reported pose, the shape check) runs on that fit too, so no kernel is left to
+    compile on the video's first tracked frame (it was: about 6 s there on a first run, 2026-12-01)."""
     t = time.perf_counter()
     img = np.full((240, 320), 128, np.uint8)
-    tracker.fit_roi(img, tracker.detection_starts((110.0, 70.0, 100.0, 100.0)))
+    res, _ = tracker.fit_roi(img, tracker.detection_starts((110.0, 70.0, 100.0, 100.0)))
+    tracker.tracked_start(res)
+    tracker.shape_sample(res)
+    tracker.reported_pose(res)
+    if tracker.model.shape_prior is not None:
+        tracker.model.shape_prior.score(res.landmarks)
     return time.perf_counter() - t
 
 

@@ -27,12 +27,15 @@ from .tracker import Tracker
 
 
 def warmup(tracker: Tracker) -> float:
-    """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds. A fit of a blank image
-    runs the search's and the landmark cascade's; what a tracked frame does with a fit then (its next start, the
-    person's shape estimate, the reported pose, the shape check) runs on that fit too, so no kernel is left to
-    compile on the video's first tracked frame (it was: about 6 s there on a first run, 2026-12-01)."""
+    """Compile (or load from numba's cache) every kernel the tracker uses; returns seconds. A fit of an image of
+    noise runs the search's kernels and the landmark cascade's (as for a noisy face, whose descriptors are read
+    smoothed: ``landmark_cascade.descriptor_view``); what a tracked frame does with a fit then (its next start,
+    the person's shape estimate, the reported pose, the shape check) runs on that fit too, so that no kernel is
+    left to compile on a video's first tracked frame (about 6 s there on a first run, 2026-12-01) or a first
+    noisy still."""
     t = time.perf_counter()
-    img = np.full((240, 320), 128, np.uint8)
+    noise = np.random.default_rng(0).normal(0.0, 20.0, (240, 320))  # (noise: a noisy face's path, smoothed)
+    img = np.clip(128.0 + noise, 0, 255).astype(np.uint8)
     res, _ = tracker.fit_roi(img, tracker.detection_starts((110.0, 70.0, 100.0, 100.0)))
     tracker.tracked_start(res)
     tracker.shape_sample(res)

@@ -32,7 +32,7 @@ def test_resize_area_edges_and_fallbacks(k):
 
 
 def test_crop_gray32_is_the_crop_s_grey_image():
-    """``crop_gray32`` (wide crops of BGR frames converted as their band of whole rows) gives the bits of
+    """``crop_gray32`` (colour crops copied into one block before the conversion) gives the bits of
     ``to_gray32`` of the crop, for BGR, BGRA and grey frames, wide and narrow crops, at the frame's edges."""
     from aamtrack.imaging import crop_gray32, to_gray32
 

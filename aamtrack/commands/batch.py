@@ -105,9 +105,9 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def run_options(*, model_path: Path, overlay: bool, pts: bool, report: bool, replay: bool, fps, smooth) -> dict:
+def run_options(*, model_path: Path, overlay: bool | str, pts: bool, report: bool, replay: bool, fps, smooth) -> dict:
     """What a finished input's summary records of the run that made it; a re-run with other options (or another
-    model file, by content) redoes the input."""
+    model file, by content) redoes the input. overlay: as ``run.track_file`` takes it (True, or "fast")."""
     try:
         digest = file_sha256(model_path)
     except OSError:

@@ -54,6 +54,22 @@ def test_run_end_to_end(tmp_path, video, model_file, capsys):
     assert summary["smoothing"] is None
 
 
+def test_fast_video_writes_the_overlay_in_mp4v(tmp_path, video, model_file, capsys):
+    """``--fast-video``: the overlay in mp4v (.mp4), one frame per input frame, without ``--video``."""
+    out = tmp_path / "out"
+    assert main(["run", str(video[0]), "--model", str(model_file), "--out-dir", str(out), "--fast-video"]) == 0
+    summary = json.loads((out / "clip.json").read_text())
+    assert summary["outputs"]["video"] == str(out / "clip_overlay.mp4")
+    cap = cv2.VideoCapture(summary["outputs"]["video"])
+    assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").upper() in (b"MP4V", b"FMP4")
+    n = 0
+    while cap.read()[0]:
+        n += 1
+    assert n == 20
+    assert sorted(p.name for p in out.iterdir()) == ["clip.csv", "clip.json", "clip_overlay.mp4"]
+    assert "clip_overlay.mp4" in capsys.readouterr().out
+
+
 def test_default_output_folder_is_next_to_the_input(tmp_path, video, model_file):
     src = tmp_path / "here.avi"
     src.write_bytes(video[0].read_bytes())

@@ -56,6 +56,21 @@ def test_writes_readable_video(tmp_path, suffix):
     assert len(frames) == 11 and all(f.image is not None for f in frames)
 
 
+def test_fast_writes_mp4v(tmp_path):
+    """``fast``: mp4v in .mp4 whatever the suffix asked, no browser codec tried first."""
+    from aamtrack.io.overlay import codec_attempts
+
+    assert codec_attempts(tmp_path / "o.webm", fast=True) == [(tmp_path / "o.mp4", "mp4v"), (tmp_path / "o.avi", "MJPG")]
+    rng = np.random.default_rng(SEED)
+    results = make_results(7, rng, fps=25.0)
+    with OverlayWriter(tmp_path / "overlay.mp4", 25.0, (WIDTH, HEIGHT), fast=True) as writer:
+        for i, r in enumerate(results):
+            writer.write(None if r.status == "unreadable" else index_image(i, rng), r)
+    assert (writer.path.name, writer.fourcc, writer.n_frames) == ("overlay.mp4", "mp4v", 7)
+    with open_frames(writer.path) as source:
+        assert len(list(source)) == 7
+
+
 def test_exception_leaves_nothing(tmp_path):
     rng = np.random.default_rng(SEED)
     with pytest.raises(RuntimeError):

@@ -21,6 +21,15 @@ def video(tmp_path_factory):
     return path, truth
 
 
+def _frames_in(path) -> int:
+    """Frames OpenCV decodes from the video at ``path``."""
+    cap = cv2.VideoCapture(str(path))
+    n = 0
+    while cap.read()[0]:
+        n += 1
+    return n
+
+
 def _err_line(capsys, *needles):
     err = stderr_lines(capsys)
     assert len(err) == 1 and err[0].startswith("aamtrack run: error:"), err
@@ -41,11 +50,7 @@ def test_run_end_to_end(tmp_path, video, model_file, capsys):
     assert np.allclose(cols["timestamp"], np.arange(20) / 25.0, atol=1e-4)
     summary = json.loads((out / "clip.json").read_text())
     assert summary["frames_read"] == 20 and summary["frames_tracked"] == 20 and summary["frames_lost"] == 0
-    cap = cv2.VideoCapture(summary["outputs"]["video"])
-    n = 0
-    while cap.read()[0]:
-        n += 1
-    assert n == 20  # overlay: one frame per input frame
+    assert _frames_in(summary["outputs"]["video"]) == 20  # overlay: one frame per input frame
     assert len(list((out / "clip_pts").glob("*.pts"))) == 20
     printed = capsys.readouterr().out
     assert "20 frames: 20 tracked" in printed
@@ -62,10 +67,7 @@ def test_fast_video_writes_the_overlay_in_mp4v(tmp_path, video, model_file, caps
     assert summary["outputs"]["video"] == str(out / "clip_overlay.mp4")
     cap = cv2.VideoCapture(summary["outputs"]["video"])
     assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").upper() in (b"MP4V", b"FMP4")
-    n = 0
-    while cap.read()[0]:
-        n += 1
-    assert n == 20
+    assert _frames_in(summary["outputs"]["video"]) == 20
     assert sorted(p.name for p in out.iterdir()) == ["clip.csv", "clip.json", "clip_overlay.mp4"]
     assert "clip_overlay.mp4" in capsys.readouterr().out
 

@@ -76,13 +76,23 @@ def _warp(image, verts, scale, shift, pix_vid, pix_bary, out):
     """Piecewise-affine warp with bilinear sampling: texture pixel p of channel ch takes the value of image
     channel ch at ``scale * sum_k pix_bary[p, k] * verts[pix_vid[p, k]] + shift``.
 
-    image (C, H, W) float32 (H, W >= 2); verts (n, 2) float64 frame pixels; scale, shift = the image's resampling
-    (``aamtrack.imaging.level_shift``); pix_vid (N, 3) int32; pix_bary (N, 3) float32; out (C * N,) float32, channel-major
-    (``out[ch * N + p]``). Samples outside the image take the nearest border value.
+    image (C, H, W) float32 (H, W >= 2), C-contiguous; verts (n, 2) float64 frame pixels; scale, shift = the image's
+    resampling (``aamtrack.imaging.level_shift``); pix_vid (N, 3) int32; pix_bary (N, 3) float32; out (C * N,)
+    float32, channel-major (``out[ch * N + p]``). Samples outside the image take the nearest border value.
     Returns the number of texture pixels whose sample fell outside the image.
+
+    In two passes: every pixel's sample position (its first pixel's flat index and the bilinear weights, float64),
+    then per channel the gathers and the interpolation along the flat image. Measured 2026-12-01 (Intel Xeon VM, one
+    core, 2 x 1930 pixels of cap12's tracked frames at 640x480, each frame's level once in turn, medians): 45.5 ->
+    25.0 us against one pass doing both per pixel (the same expressions, so the same values bit for bit). Its
+    scratch (3 N) is allocated here: handed in, it measured the same (24.95 against 25.05 us).
     """
     C, H, W = image.shape
     N = pix_vid.shape[0]
+    flat = image.reshape(-1)
+    at = np.empty(N, np.int64)
+    fxs = np.empty(N)
+    fys = np.empty(N)
     n_out = 0
     for p in range(N):
         a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
@@ -95,12 +105,19 @@ def _warp(image, verts, scale, shift, pix_vid, pix_bary, out):
             y = min(max(y, 0.0), H - 1.0)
         x0 = min(int(x), W - 2)
         y0 = min(int(y), H - 2)
-        fx = x - x0
-        fy = y - y0
-        for ch in range(C):
-            top = image[ch, y0, x0] + fx * (image[ch, y0, x0 + 1] - image[ch, y0, x0])
-            bot = image[ch, y0 + 1, x0] + fx * (image[ch, y0 + 1, x0 + 1] - image[ch, y0 + 1, x0])
-            out[ch * N + p] = top + fy * (bot - top)
+        fxs[p] = x - x0
+        fys[p] = y - y0
+        at[p] = y0 * W + x0
+    for ch in range(C):
+        o = ch * H * W
+        for p in range(N):
+            k = at[p] + o
+            fx = fxs[p]
+            v00 = flat[k]
+            v10 = flat[k + W]
+            top = v00 + fx * (flat[k + 1] - v00)
+            bot = v10 + fx * (flat[k + W + 1] - v10)
+            out[ch * N + p] = top + fys[p] * (bot - top)
     return n_out
 
 

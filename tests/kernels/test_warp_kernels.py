@@ -52,6 +52,46 @@ def test_warp_clamps_outside_samples():
     assert out.tolist() == [0.0, 11.0]  # nearest corners
 
 
+def _slow_warp_exact(image, verts, scale, shift, vid, bary):
+    """``_warp`` one pixel at a time in Python, in the kernel's float64 expressions and float32 differences."""
+    C, H, W = image.shape
+    N = len(vid)
+    out = np.empty(C * N, np.float32)
+    n_out = 0
+    for p in range(N):
+        w = [float(b) for b in bary[p]]
+        x = scale * (w[0] * verts[vid[p, 0], 0] + w[1] * verts[vid[p, 1], 0] + w[2] * verts[vid[p, 2], 0]) + shift
+        y = scale * (w[0] * verts[vid[p, 0], 1] + w[1] * verts[vid[p, 1], 1] + w[2] * verts[vid[p, 2], 1]) + shift
+        if x < 0.0 or y < 0.0 or x > W - 1 or y > H - 1:
+            n_out += 1
+            x = min(max(x, 0.0), W - 1.0)
+            y = min(max(y, 0.0), H - 1.0)
+        x0 = min(int(x), W - 2)
+        y0 = min(int(y), H - 2)
+        fx = x - x0
+        fy = y - y0
+        for ch in range(C):
+            im = image[ch]
+            top = float(im[y0, x0]) + fx * float(im[y0, x0 + 1] - im[y0, x0])  # float32 difference, float64 rest
+            bot = float(im[y0 + 1, x0]) + fx * float(im[y0 + 1, x0 + 1] - im[y0 + 1, x0])
+            out[ch * N + p] = top + fy * (bot - top)
+    return out, n_out
+
+
+def test_warp_is_bit_identical_to_the_pixel_by_pixel_loop():
+    rng = np.random.default_rng(SEED)
+    image = rng.uniform(-3, 3, (2, 37, 53)).astype(np.float32)
+    verts = rng.uniform(-8, 60, (12, 2))  # some samples fall outside the image (clamped)
+    vid = rng.integers(0, 12, (401, 3)).astype(np.int32)
+    bary = rng.dirichlet([1, 1, 1], 401).astype(np.float32)
+    out = np.empty(802, np.float32)
+    for scale, shift in ((1.0, 0.0), (0.5, -0.25)):
+        n_out = _warp(image, verts, scale, shift, vid, bary, out)
+        ref, ref_out = _slow_warp_exact(image, verts, scale, shift, vid, bary)
+        assert n_out == ref_out and (scale != 1.0 or n_out > 0)
+        assert np.array_equal(out, ref)  # the same expressions: the same bits
+
+
 def test_normalize():
     tex = np.random.default_rng(SEED).normal(5, 3, 400).astype(np.float32)
     _normalize(tex)

@@ -170,28 +170,37 @@ def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_ba
     """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
     basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D.
     Scratch: verts (n, 2) float64, tex (D,) float32, coef (m,) float64.
+
+    The coefficients c = app^T (T - I_m) in one pass over the texture, four of its pixels at a time into all m sums
+    (a loop across the m, which vectorises, as ``patches._qmatvec``), each sum in the order of the pixels as before,
+    so bit for bit the same. Measured 2026-12-01 (Intel Xeon VM, one core, cap12's tracked frames at 640x480,
+    D = 3860, m = 8, medians): the projection after the warp 33.4 -> 23.6 us against passes over the texture for four
+    coefficients at a time (four scalar sums in flight; numba does not vectorise such straight-line code).
     """
     _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex)
     D = tex.shape[0]
     m = app.shape[1]
     for p in range(D):
         e[p] = tex[p] - mean[p]
-    j = 0
-    while j + 4 <= m:  # four coefficients per pass over e: four sums in flight, each still in the order of p
-        a0 = a1 = a2 = a3 = 0.0
-        for p in range(D):
-            ep = e[p]
-            a0 += app[p, j] * ep
-            a1 += app[p, j + 1] * ep
-            a2 += app[p, j + 2] * ep
-            a3 += app[p, j + 3] * ep
-        coef[j], coef[j + 1], coef[j + 2], coef[j + 3] = a0, a1, a2, a3
-        j += 4
-    for jj in range(j, m):
-        acc = 0.0
-        for p in range(D):
-            acc += app[p, jj] * e[p]
-        coef[jj] = acc
+    for j in range(m):
+        coef[j] = 0.0
+    D4 = D - D % 4
+    for p in range(0, D4, 4):  # four terms of every sum per pass of a loop across the m coefficients, which
+        e0 = e[p]  # vectorises; each sum still adds its terms one by one in the order of p
+        e1 = e[p + 1]
+        e2 = e[p + 2]
+        e3 = e[p + 3]
+        r0 = app[p]
+        r1 = app[p + 1]
+        r2 = app[p + 2]
+        r3 = app[p + 3]
+        for j in range(m):
+            coef[j] = (((coef[j] + r0[j] * e0) + r1[j] * e1) + r2[j] * e2) + r3[j] * e3
+    for p in range(D4, D):
+        ep = e[p]
+        r = app[p]
+        for j in range(m):
+            coef[j] += r[j] * ep
     err = 0.0
     for p in range(D):
         acc = e[p]

@@ -198,6 +198,41 @@ def test_residual_matches_reference(mode, n_ch):
     assert np.abs(E - e_ref).max() < 1e-4  # the batch is the same residual, row by row
 
 
+@pytest.mark.parametrize("m", [0, 3, 8, 9])
+def test_residual_projection_sums_in_the_order_of_the_pixels(m):
+    """The appearance coefficients (four pixels per pass over the m sums) and the residual are bit for bit the
+    plain loops: each coefficient summed pixel by pixel in float64, then e - app c, coefficient by coefficient."""
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng, 2)
+    vid, bary = vid[:299], bary[:299]  # D = 598: not a whole number of fours
+    D = 2 * len(vid)
+    mean = rng.normal(0, 1, D).astype(np.float32)
+    app = np.linalg.qr(rng.normal(0, 1, (D, max(m, 1))))[0][:, :m].astype(np.float32).copy()
+    tex = np.empty(D, np.float32)
+    coef = np.empty(m)
+    e = np.empty(D)
+    err = _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, 1, np.empty((4, 2)), tex, coef, e)
+    e0 = [float(t - u) for t, u in zip(tex, mean, strict=True)]  # float32 difference
+    ref = []
+    for j in range(m):
+        acc = 0.0
+        for p in range(D):
+            acc += float(app[p, j]) * e0[p]
+        ref.append(acc)
+    assert coef.tolist() == ref
+    e_ref = []
+    for p in range(D):
+        acc = e0[p]
+        for j in range(m):
+            acc -= float(app[p, j]) * ref[j]
+        e_ref.append(acc)
+    assert e.tolist() == e_ref
+    err_ref = 0.0
+    for v in e_ref:
+        err_ref += v * v
+    assert err == err_ref / D
+
+
 def test_prior_cost():
     q = np.r_[0.1, 0.2, 0.3, 4.0, 5.0, 6.0, 0.5, -2.0]
     assert _prior_cost(q, np.array([2, 6, 7]), np.array([0.0, 3.0, 0.5])) == pytest.approx(3 * 0.25 + 0.5 * 4.0)

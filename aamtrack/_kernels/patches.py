@@ -97,6 +97,12 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
     fxs = np.empty(N, np.float32)  # a grid inside the image: each sample's bilinear weights and first pixel
     fys = np.empty(N, np.float32)
     ats = np.empty(N, np.int32)
+    oxs = np.empty(N, np.float32)  # each sample's row start: its offset from the whole pixel before it
+    oys = np.empty(N, np.float32)
+    rows = np.empty(N, np.int32)  # and that pixel's flat index
+    js = np.empty(N, np.float32)  # each sample's column in the grid
+    for k in range(N):
+        js[k] = k % G
     gxs = np.empty(n * n, np.float32)
     gys = np.empty(n * n, np.float32)
     mags = np.empty(n * n, np.float32)  # float32 as the samples: the orientation pass vectorises twice as wide
@@ -127,6 +133,8 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
             # first one (to about 1e-6 px; in float64 with int64 indices, which AVX2 cannot convert in vectors,
             # the samples of 68 points took 43 us against 29), the indices in int32 (``kernels._patch_image``
             # bounds the image's size)
+            # (each row's start copied to its samples, then one loop over the whole grid: 68 points' descriptors
+            # 68.6 -> 57.5 us, 2026-12-01, Intel Xeon VM, one core, against a loop over each row's 11 samples)
             for i in range(G):
                 dv = i - c0
                 rx = cx + vx * dv - ux * c0
@@ -135,16 +143,19 @@ def _descriptors(img, pts, scale, shift, a00, a01, a10, a11, cells, cell, bins, 
                 by = math.floor(ry)
                 ox = np.float32(rx - bx)
                 oy = np.float32(ry - by)
-                ibx = np.int32(bx)
-                iby = np.int32(by)
+                row = np.int32(by) * W32 + np.int32(bx)
                 for j in range(G):
-                    x = ox + sx * np.float32(j)
-                    y = oy + sy * np.float32(j)
-                    xf = np.floor(x)
-                    yf = np.floor(y)
-                    fxs[i * G + j] = x - xf
-                    fys[i * G + j] = y - yf
-                    ats[i * G + j] = (iby + np.int32(yf)) * W32 + ibx + np.int32(xf)
+                    oxs[i * G + j] = ox
+                    oys[i * G + j] = oy
+                    rows[i * G + j] = row
+            for k in range(N):
+                x = oxs[k] + sx * js[k]
+                y = oys[k] + sy * js[k]
+                xf = np.floor(x)
+                yf = np.floor(y)
+                fxs[k] = x - xf
+                fys[k] = y - yf
+                ats[k] = rows[k] + np.int32(yf) * W32 + np.int32(xf)
             for k in range(N):  # (on the flat image: 2-d indexing measured 10% slower)
                 at = ats[k]
                 fx = fxs[k]

@@ -281,17 +281,38 @@ def _noise_and_deviation(img, scale, pts):
         o = lap[(y - 1) * (w - 2):y * (w - 2)]
         for x in range(1, w - 1):
             o[x - 1] = abs((((four * mid[x] - up[x]) - down[x]) - mid[x - 1]) - mid[x + 1])
-    s = np.zeros(8)  # eight running sums each (see ``_energy``)
-    ss = np.zeros(8)
-    w8 = w - w % 8
+    s = np.zeros(8)  # eight running sums each (see ``_energy``): s[j] adds the values at x = j, j + 8, ... of each
+    ss = np.zeros(8)  # row in turn, then s[0] the row's last w % 8 (the squares in float32: numba's float() of a
+    # float32 stays float32)
+    # The lanes' loop vectorises when its count is not a constant (numba leaves SLP vectorisation off, and a loop
+    # of 8 is unrolled to scalar code) and it reads slices by the loop index alone (a sum of indices may be
+    # negative, so numba's wraparound makes it a gather); four values of each lane per pass, each added in turn.
+    # Measured 2026-12-01 (Intel Xeon VM, one core, the boxes of cap12's tracked frames, medians): the sums
+    # 17.2 -> 10.4 us, the same bits.
+    L = min(8, w)  # = 8: the box is at least 8 wide
+    w8 = w - w % L
+    w32 = w8 - w8 % (4 * L)
     for y in range(y0, y1):
-        r = img[y, x0:x1]
-        for x in range(0, w8, 8):
-            for j in range(8):
-                v = float(r[x + j])
+        r = img[y]
+        for x in range(x0, x0 + w32, 4 * L):
+            a0 = r[x:x + L]
+            a1 = r[x + L:x + 2 * L]
+            a2 = r[x + 2 * L:x + 3 * L]
+            a3 = r[x + 3 * L:x + 4 * L]
+            for j in range(L):
+                v0 = float(a0[j])
+                v1 = float(a1[j])
+                v2 = float(a2[j])
+                v3 = float(a3[j])
+                s[j] = (((s[j] + v0) + v1) + v2) + v3
+                ss[j] = (((ss[j] + v0 * v0) + v1 * v1) + v2 * v2) + v3 * v3
+        for x in range(x0 + w32, x0 + w8, L):
+            a0 = r[x:x + L]
+            for j in range(L):
+                v = float(a0[j])
                 s[j] += v
                 ss[j] += v * v
-        for x in range(w8, w):
+        for x in range(x0 + w8, x1):
             v = float(r[x])
             s[0] += v
             ss[0] += v * v

@@ -144,3 +144,41 @@ def test_median_kernel_is_numpys_median(n):
     for v in cases:
         v = v.astype(np.float32)
         assert _middle(v.copy()) == np.median(v)  # exact: the same float32 values and mean
+
+
+def _deviation_in_eight_lanes(box):
+    """The box's standard deviation as ``_noise_and_deviation`` sums it, one value at a time in Python: eight running
+    sums (float64) of values and of their squares (squared in float32: numba's ``float()`` of a float32 stays
+    float32), lane j taking x = j, j + 8, ... of each row in turn and lane 0 the row's last w % 8; the lanes added
+    in order."""
+    h, w = box.shape
+    s = [0.0] * 8
+    ss = [0.0] * 8
+    w8 = w - w % 8
+    for y in range(h):
+        for x in range(w):
+            v = box[y, x]
+            j = x % 8 if x < w8 else 0
+            s[j] += float(v)
+            ss[j] += float(v * v)
+    tot = 0.0
+    tot2 = 0.0
+    for j in range(8):
+        tot += s[j]
+        tot2 += ss[j]
+    mean = tot / (h * w)
+    return math.sqrt(max(tot2 / (h * w) - mean * mean, 0.0))
+
+
+@pytest.mark.parametrize("w", [8, 9, 31, 32, 33, 40, 71, 96])
+def test_deviation_sums_in_eight_lanes_bit_for_bit(w):
+    """The sums (four values of each lane per pass of a vectorised loop over the lanes) add each lane's values one by
+    one in the order above: the same bits as the plain loop."""
+    from aamtrack._kernels.face_stats import _noise_and_deviation
+
+    rng = np.random.default_rng(SEED)
+    img = (rng.random((60, 120)) * 255).astype(np.float32)
+    x0, y0, h = 5, 7, 23
+    pts = np.array([[x0, y0], [x0 + w - 1, y0 + h - 1], [x0 + 2, y0 + 3]], np.float64)  # the box (x0, y0, w, h)
+    _, sd = _noise_and_deviation(img, 1.0, pts)
+    assert sd == _deviation_in_eight_lanes(img[y0:y0 + h, x0:x0 + w])

@@ -809,6 +809,53 @@ def test_a_face_found_late_is_tracked_back_to_where_it_appeared(synth_model, cut
     assert [r.status for r in held][5:9] == ["lost", "tracked", "tracked", "detected"]  # at most 2 wait
 
 
+class _CountingDetector:
+    """The real Haar detector, recording the ``thorough`` flag of every ``find``."""
+
+    def __init__(self):
+        from aamtrack.detector import HaarDetector
+
+        self.flags = []
+
+        class Counting(HaarDetector):
+            def find(this, gray, *, thorough=True):
+                self.flags.append(thorough)
+                return super().find(gray, thorough=thorough)
+
+        self.detector = Counting()
+
+
+@pytest.mark.parametrize("stride", [1, 3])
+def test_a_long_stretch_without_a_face_is_searched_every_so_many_frames(synth_model, stride):
+    """Eight grey frames, then a face; shot changes off, thorough searches on the first lost frame only. With
+    ``lost_stride`` 3 after 4 frames without a face, frames 4, 5, 7 and 8 are not searched and 6 and 9 are (the
+    lost ones from 4 on say so); the face, which appears at frame 8, is found at 9 and frame 8 is tracked back from
+    it (``backfill``): every face frame is tracked either way, with 6 detector runs instead of 9."""
+    from aamtrack.metrics import nme
+
+    ref = synth.face_layout()
+    truth = synth.project2d(ref, 0.0, 130, 160, 120)
+    face = synth.render(ref, truth, (320, 240))
+    frames = [np.full_like(face, 60)] * 8 + [face] * 5
+    seen = _CountingDetector()
+    cfg = TrackerConfig(lost_stride=stride, lost_stride_after=4, thorough_every=100, cut_below=0)
+    results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
+        synth_frame(i, f) for i, f in enumerate(frames)))
+    assert [r.frame for r in results] == list(range(13))
+    assert all(not r.success for r in results[:8]) and all(r.success for r in results[8:])
+    assert all(nme(r.landmarks, truth) < 0.08 for r in results[8:])  # on the face
+    if stride == 1:
+        assert len(seen.flags) == 9 and results[8].status == "detected"
+        assert all(r.reason == "no face detected" for r in results[:8])
+    else:
+        assert len(seen.flags) == 6  # frames 0-3, 6 and 9
+        assert [r.status for r in results[8:10]] == ["tracked", "detected"]
+        assert results[8].reason == "tracked back from frame 9"
+        assert [r.reason for r in results[:4]] == ["no face detected"] * 4
+        assert {r.reason for r in results[4:8]} == {"no face detected (1 frame in 3 searched after 4 without one)"}
+    assert seen.flags[0] and not any(seen.flags[1:])  # thorough once, on the first lost frame
+
+
 def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
     """A tracked face, then a cut to another view of it (40 px to the right: its thumbnail correlates below the
     cut rule) that only the thorough searches see: the cut's detection is thorough, so the face is found on the

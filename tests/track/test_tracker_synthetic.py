@@ -750,22 +750,22 @@ def test_a_rejected_largest_box_gives_way_to_other_boxes():
     assert nme(results[3].landmarks, truth) < 0.08  # on the face
 
 
-class _SeenOnlyThoroughly:
-    """A Haar detector that sees the face only in its thorough searches (as a side-lit or very small face), and
-    records the ``thorough`` flag of every ``find``."""
+class _Recording:
+    """The real Haar detector, recording the ``thorough`` flag of every ``find``; with ``thorough_only`` it sees the
+    face only in its thorough searches (as a side-lit or very small face)."""
 
-    def __init__(self):
+    def __init__(self, *, thorough_only: bool = False):
         from aamtrack.detector import HaarDetector
 
         self.flags = []
         inner = HaarDetector()
 
-        class Steered(HaarDetector):
+        class Recorded(HaarDetector):
             def find(this, gray, *, thorough=True):
                 self.flags.append(thorough)
-                return inner.find(gray) if thorough else None
+                return inner.find(gray, thorough=thorough) if thorough or not thorough_only else None
 
-        self.detector = Steered()
+        self.detector = Recorded()
 
 
 @pytest.mark.parametrize("every, first_found", [(1, 5), (4, 8)])
@@ -777,7 +777,7 @@ def test_lost_frames_run_the_thorough_searches_every_so_many_frames(synth_model,
     ref = synth.face_layout()
     face = synth.render(ref, synth.project2d(ref, 0.0, 130, 160, 120), (320, 240))
     frames = [np.full_like(face, 60)] * 5 + [face] * 6
-    seen = _SeenOnlyThoroughly()
+    seen = _Recording(thorough_only=True)
     cfg = TrackerConfig(thorough_every=every, cut_below=0, backfill=0)
     results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
         synth_frame(i, f) for i, f in enumerate(frames)))
@@ -797,32 +797,16 @@ def test_a_face_found_late_is_tracked_back_to_where_it_appeared(synth_model, cut
     face = synth.render(ref, truth, (320, 240))
     frames = [np.full_like(face, 60)] * 5 + [face] * 6
     cfg = TrackerConfig(thorough_every=4, cut_below=cut_below)
-    results = list(Tracker(synth_model, config=cfg, detector=_SeenOnlyThoroughly().detector).track(
+    results = list(Tracker(synth_model, config=cfg, detector=_Recording(thorough_only=True).detector).track(
         synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.frame for r in results] == list(range(11))
     assert [r.status for r in results] == ["lost"] * 5 + ["tracked"] * 3 + ["detected"] + ["tracked"] * 2
     for r in results[5:8]:
         assert nme(r.landmarks, truth) < 0.08  # on the face
         assert r.reason == "tracked back from frame 8"
-    held = list(Tracker(synth_model, config=replace(cfg, backfill=2), detector=_SeenOnlyThoroughly().detector)
+    held = list(Tracker(synth_model, config=replace(cfg, backfill=2), detector=_Recording(thorough_only=True).detector)
                 .track(synth_frame(i, f) for i, f in enumerate(frames)))
     assert [r.status for r in held][5:9] == ["lost", "tracked", "tracked", "detected"]  # at most 2 wait
-
-
-class _CountingDetector:
-    """The real Haar detector, recording the ``thorough`` flag of every ``find``."""
-
-    def __init__(self):
-        from aamtrack.detector import HaarDetector
-
-        self.flags = []
-
-        class Counting(HaarDetector):
-            def find(this, gray, *, thorough=True):
-                self.flags.append(thorough)
-                return super().find(gray, thorough=thorough)
-
-        self.detector = Counting()
 
 
 @pytest.mark.parametrize("stride", [1, 3])
@@ -837,7 +821,7 @@ def test_a_long_stretch_without_a_face_is_searched_every_so_many_frames(synth_mo
     truth = synth.project2d(ref, 0.0, 130, 160, 120)
     face = synth.render(ref, truth, (320, 240))
     frames = [np.full_like(face, 60)] * 8 + [face] * 5
-    seen = _CountingDetector()
+    seen = _Recording()
     cfg = TrackerConfig(lost_stride=stride, lost_stride_after=4, thorough_every=100, cut_below=0)
     results = list(Tracker(synth_model, config=cfg, detector=seen.detector).track(
         synth_frame(i, f) for i, f in enumerate(frames)))
@@ -866,7 +850,7 @@ def test_a_cut_while_tracking_searches_thoroughly_at_once(synth_model):
     face = synth.render(ref, synth.project2d(ref, 0.0, 130, 130, 120), (320, 240))
     moved = np.roll(face, 40, axis=1)
     assert float((thumbnail(face) * thumbnail(moved)).sum()) < TrackerConfig().cut_below  # the premise: a cut
-    seen = _SeenOnlyThoroughly()
+    seen = _Recording(thorough_only=True)
     results = list(Tracker(synth_model, config=TrackerConfig(thorough_every=4), detector=seen.detector).track(
         synth_frame(i, f) for i, f in enumerate([face] * 3 + [moved] * 3)))
     assert all(r.success for r in results)

@@ -163,6 +163,12 @@ def unsharp(image: np.ndarray, sigma: float, amount: float) -> np.ndarray:
     return out.astype(image.dtype)
 
 
+def smoothed(image: np.ndarray, sigma: float) -> np.ndarray:
+    """``image`` smoothed by a Gaussian of ``sigma`` pixels, same shape and dtype (``Tracker.fit_still``'s second
+    look at a dim, noisy face)."""
+    return cv2.GaussianBlur(image, (0, 0), sigma)
+
+
 def level_factor(face_px: float, couple_face_px: float) -> float:
     """r = min(1, couple_face_px / face_px): the resampling that makes the face ``couple_face_px`` wide."""
     if not np.isfinite(face_px) or face_px <= couple_face_px:

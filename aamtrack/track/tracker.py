@@ -213,7 +213,7 @@ class TrackerConfig:
     the same to the digit; 150 noise stills (``tests/test_shipped_models.py``'s set) none fitted either way. Every
     dim still smoothed instead, the smoothed look the only one (/tmp harness, 1.0 px): 80.3%: the search reads a
     smoothed face less well than a noisy one where both are found, so it is a second look only. Costs a second
-    ``fit_still`` on refused dim stills only (dim_small 271 -> 345 s for its 330). 0 never does. (Not for video
+    ``fit_still`` on refused dim stills only (dim_small 271 -> 316 s for its 330, each run beside another). 0 never does. (Not for video
     frames, as ``sharpen_soft``.)
     landmark_stages_tracked: on a tracked frame, only the last this many stages of the landmark cascade
     (``aamtrack.landmark_cascade``) run, from the search's points (0, the default: all of them); detections run

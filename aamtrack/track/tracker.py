@@ -213,8 +213,8 @@ class TrackerConfig:
     the same to the digit; 150 noise stills (``tests/test_shipped_models.py``'s set) none fitted either way. Every
     dim still smoothed instead, the smoothed look the only one (/tmp harness, 1.0 px): 80.3%: the search reads a
     smoothed face less well than a noisy one where both are found, so it is a second look only. Costs a second
-    ``fit_still`` on refused dim stills only (dim_small 271 -> 316 s for its 330, each run beside another). 0 never does. (Not for video
-    frames, as ``sharpen_soft``.)
+    ``fit_still`` on refused dim stills only (dim_small 271 -> 316 s for its 330, each run beside another). 0
+    never does. (Not for video frames, as ``sharpen_soft``.)
     landmark_stages_tracked: on a tracked frame, only the last this many stages of the landmark cascade
     (``aamtrack.landmark_cascade``) run, from the search's points (0, the default: all of them); detections run
     all. Two stages (the default before 2026-11-22) were nearly as good on cap12 (raw NME 0.0241 against 0.0232
@@ -803,24 +803,25 @@ class Tracker:
         try:
             res, fit = self._fit_still(frame, mirror, agree, agree_dim)
             cfg = self.config
+            eye = 1.0 if fit is None else max(float(np.linalg.norm(fit.landmarks[45] - fit.landmarks[36])), 1.0)
             if cfg.sharpen_soft > 0 and fit is not None and fit.soft:  # a blurred face: look again, sharpened
-                eye = float(np.linalg.norm(fit.landmarks[45] - fit.landmarks[36]))
-                sharp = ReplayFrame(frame.index, frame.timestamp,
-                                    unsharp(frame.image, cfg.sharpen_soft * max(eye, 1.0), cfg.sharpen_amount))
-                alt = self._fit_still(sharp, mirror, agree, agree_dim)[0]
-                timings = _summed(res.timings, alt.timings)
-                if alt.success and (not res.success or alt.confidence > res.confidence):
-                    res = alt
-                res = replace(res, timings=timings)
+                res = self._look_again(frame, res, unsharp(frame.image, cfg.sharpen_soft * eye, cfg.sharpen_amount),
+                                       mirror, agree, agree_dim)
             if cfg.smooth_dim > 0 and not res.success and fit is not None and fit.dim:  # a dim, noisy face refused:
-                eye = float(np.linalg.norm(fit.landmarks[45] - fit.landmarks[36]))  # look again, smoothed
-                smooth = ReplayFrame(frame.index, frame.timestamp,
-                                     smoothed(frame.image, cfg.smooth_dim * max(eye, 1.0)))
-                alt = self._fit_still(smooth, mirror, agree, agree_dim)[0]
-                res = replace(alt if alt.success else res, timings=_summed(res.timings, alt.timings))
+                res = self._look_again(frame, res, smoothed(frame.image, cfg.smooth_dim * eye), mirror, agree,
+                                       agree_dim)  # look again, smoothed
             return res
         finally:
             self._still = False
+
+    def _look_again(self, frame, res: FrameResult, image: np.ndarray, mirror: bool, agree: float,
+                    agree_dim: float) -> FrameResult:
+        """``fit_still``'s second look: ``image`` (the frame's image sharpened or smoothed) fitted as the frame was
+        (``_fit_still``); its result replaces ``res`` if accepted and ``res`` is not, or is less confident. The
+        time of both looks is counted."""
+        alt = self._fit_still(ReplayFrame(frame.index, frame.timestamp, image), mirror, agree, agree_dim)[0]
+        kept = alt if alt.success and (not res.success or alt.confidence > res.confidence) else res
+        return replace(kept, timings=_summed(res.timings, alt.timings))
 
     def _fit_still(self, frame, mirror: bool, agree: float, agree_dim: float) -> tuple[FrameResult, FitResult | None]:
         """``fit_still``'s work on one image: (its result, the image's own fit behind it, accepted or not; None

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import cv2
 import numpy as np
 import pytest
@@ -109,6 +111,52 @@ def test_single_image_is_one_frame(tmp_path):
     cv2.imwrite(str(tmp_path / "face.png"), index_image(5, rng))
     frames = list(open_frames(tmp_path / "face.png"))
     assert len(frames) == 1 and decode_index(frames[0].image) == 5
+
+
+def _exif_oriented(jpeg: bytes, orientation: int) -> bytes:
+    """``jpeg`` with an Exif segment holding only the orientation tag (0x0112), as a phone writes a portrait
+    shot: the pixels stored as the sensor lay, the tag saying how to turn them for viewing."""
+    tiff = b"MM\x00*" + struct.pack(">IHHHIHHI", 8, 1, 0x0112, 3, 1, orientation, 0, 0)
+    app1 = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + struct.pack(">H", len(app1) + 2) + app1 + jpeg[2:]
+
+
+def test_a_phone_photo_is_read_the_right_way_up(tmp_path):
+    """Exif orientation 6 (stored turned 90 degrees counter-clockwise, to be shown turned clockwise): the frame is
+    the upright picture a viewer shows, so a portrait face is not fitted lying on its side. OpenCV's decoder
+    turns it with ``IMREAD_COLOR``; with ``IMREAD_UNCHANGED`` (say, to keep 16-bit samples) it would not."""
+    upright = index_image(5, np.random.default_rng(SEED))
+    ok, jpeg = cv2.imencode(".jpg", cv2.rotate(upright, cv2.ROTATE_90_COUNTERCLOCKWISE), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    assert ok
+    (tmp_path / "portrait.jpg").write_bytes(_exif_oriented(jpeg.tobytes(), 6))
+    with open_frames(tmp_path / "portrait.jpg") as source:
+        assert (source.width, source.height) == (WIDTH, HEIGHT)
+        (frame,) = list(source)
+    assert frame.image.shape == upright.shape and decode_index(frame.image) == 5
+    assert np.abs(frame.image.astype(int) - upright).mean() < 4  # the same picture, but for JPEG's loss
+
+
+def test_a_phone_video_is_read_the_right_way_up(tmp_path):
+    """An mp4 whose track header's matrix turns its frames by 90 degrees for display (how phones record portrait
+    video): the frames arrive upright and frame-exact, the size is the upright one (OpenCV's FFmpeg backend
+    applies the rotation, ``CAP_PROP_ORIENTATION_AUTO``)."""
+    n, rng = 12, np.random.default_rng(SEED)
+    path = tmp_path / "portrait.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (HEIGHT, WIDTH))
+    for i in range(n):
+        writer.write(np.ascontiguousarray(cv2.rotate(index_image(i, rng), cv2.ROTATE_90_COUNTERCLOCKWISE)))
+    writer.release()
+    data = bytearray(path.read_bytes())
+    identity = struct.pack(">9I", 0x10000, 0, 0, 0, 0x10000, 0, 0, 0, 0x40000000)
+    at = data.find(identity, data.find(b"tkhd"))
+    assert at > 0, "no track header matrix in the written mp4"
+    data[at:at + 36] = struct.pack(">9I", 0, 0x10000, 0, 0xFFFF0000, 0, 0, 0, 0, 0x40000000)  # 90 degrees
+    path.write_bytes(bytes(data))
+    with open_frames(path) as source:
+        assert (source.width, source.height, source.n_frames) == (WIDTH, HEIGHT, n)
+        frames = list(source)
+    assert all(f.image.shape == (HEIGHT, WIDTH, 3) for f in frames)
+    assert [decode_index(f.image) for f in frames] == list(range(n))
 
 
 def test_corrupt_image_in_folder_yields_none(tmp_path):

@@ -266,6 +266,16 @@ def project_descriptors(phi: np.ndarray, mean: np.ndarray, basis: np.ndarray) ->
     return z.reshape(*phi.shape[:-1], -1)
 
 
+def outside(image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np.ndarray) -> np.ndarray:
+    """(n_points,) bool: which points pts (n, 2) (frame pixels) have their patch (half side ``half`` in the face
+    frame M, ``similarity_to``) wholly outside ``image``, the frame resampled by ``scale``: their projected
+    descriptors are set to 0, the stage's mean, as the compiled cascade does (``_kernels.patches._blank_outside``)."""
+    x = scale * np.asarray(pts, np.float64) + (0.5 * scale - 0.5)
+    reach = half * float(np.hypot(M[0, 0], M[1, 0])) * scale
+    H, W = image.shape[:2]
+    return (x[:, 0] < -reach) | (x[:, 1] < -reach) | (x[:, 0] > W - 1 + reach) | (x[:, 1] > H - 1 + reach)
+
+
 @dataclass(frozen=True)
 class LandmarkCascade:
     """ref (68, 2) float64: the reference shape (centred, outer eye corners 1 apart, level). halves (K,): each
@@ -366,8 +376,10 @@ class LandmarkCascade:
         read at given points."""
         k = self.n_stages - 1
         M, _ = similarity_to(self.ref, pts)
-        return project_descriptors(descriptors(self.spec, image, scale, pts, self.halves[k], M, gain=gain),
-                                   self.basis_mean[k], self.basis[k]).reshape(-1)
+        z = project_descriptors(descriptors(self.spec, image, scale, pts, self.halves[k], M, gain=gain),
+                                self.basis_mean[k], self.basis[k]).reshape(len(pts), -1)
+        z[outside(image, scale, pts, self.halves[k], M)] = 0.0
+        return z.reshape(-1)
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
         """``apply`` stage by stage in numpy (what training does; the compiled ``apply`` is tested against it)."""
@@ -387,6 +399,7 @@ class LandmarkCascade:
             M, _ = similarity_to(self.ref, x)
             z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf, gain), self.basis_mean[k],
                                     self.basis[k])
+            z.reshape(len(x), -1)[outside(image, scale, x, half, M)] = 0.0  # (a view: z stays flat)
             ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
             prior += ds
             x += (self.applied[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds

@@ -348,7 +348,7 @@ def test_a_face_cut_by_the_frames_side_is_found_and_tracked():
     face a third of the frame wide: not a close-up): before the edge search (``detector.Search.edge``) no frame
     was tracked ('no face detected'); now the face is found within a few frames and tracked on, its visible
     points where the uncut track's moved by the same shift (measured 26 of 30 frames, NME over the visible points
-    0.017)."""
+    0.017; 0.010 since the patches and texture past the edge count as missing, ``patches._blank_outside``)."""
     import cv2
 
     model = load_model(default_model_path("3d"))
@@ -368,6 +368,37 @@ def test_a_face_cut_by_the_frames_side_is_found_and_tracked():
     print(f"cut face: {len(errors)} of {len(cut)} frames tracked, visible points' NME {np.mean(errors):.4f}")
     assert len(errors) >= 20 and all(r.success for r in results[10:])
     assert np.mean(errors) < 0.03 and np.max(errors) < 0.05
+
+
+def test_a_face_sliding_half_out_of_the_frame_is_kept_on_what_the_frame_shows():
+    """The sample's first 40 frames slid left until 40% of the face's width lies past the frame's edge and back (a
+    speaker leaning out of shot): every frame stays tracked, the visible points where the unmoved track's moved
+    with the frame. The search's texture pixels and the landmark cascade's patches outside the frame count as
+    missing (``warp._fill_outside``, ``patches._blank_outside``) and half a face is kept (``min_inside`` 0.5);
+    before, the frames past about 30% were lost ("landmarks inside the frame", then no face detected)."""
+    import cv2
+
+    model = load_model(default_model_path("3d"))
+    images = _sample_images(40)
+    pts = np.array([r.landmarks for r in _track(Tracker(model), images)])
+    H, W = images[0].shape[:2]
+    width = np.median(np.ptp(pts[:, :, 0], axis=1))
+    out_share = 0.4 * np.sin(np.linspace(0, np.pi, len(images)))  # 0 -> 40% of the face's width past the edge -> 0
+    cut, moved = [], []
+    for im, p, share in zip(images, pts, out_share):
+        dx = -(p[:, 0].min() + share * width)
+        cut.append(cv2.warpAffine(im, np.array([[1.0, 0.0, dx], [0.0, 1.0, 0.0]]), (W, H),
+                                  borderMode=cv2.BORDER_REPLICATE))
+        moved.append(p + [dx, 0.0])
+    results = _track(Tracker(model), cut)
+    errors = []
+    for r, p in zip(results, moved):
+        seen = p[:, 0] >= 0  # the points inside the frame
+        errors.append(np.linalg.norm(r.landmarks[seen] - p[seen], axis=1).mean() / np.linalg.norm(p[45] - p[36]))
+    print(f"face half out: {sum(r.success for r in results)} of {len(cut)} frames tracked, visible points' NME "
+          f"mean {np.nanmean(errors):.4f}, max {np.nanmax(errors):.4f}")
+    assert all(r.success for r in results)
+    assert np.mean(errors) < 0.03 and np.max(errors) < 0.06
 
 
 def test_a_small_rolled_face_in_a_dim_frame_is_found_at_once_and_tracked():

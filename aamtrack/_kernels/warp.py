@@ -71,6 +71,16 @@ def _project(shape3d, basis, q, out):
         out[i, 1] = -s * (R[1, 0] * x + R[1, 1] * y + R[1, 2] * z) + ty
 
 
+@numba.njit(inline="always", **NJIT)
+def _sample_at(verts, scale, shift, pix_vid, pix_bary, p):
+    """Where texture pixel p samples an image resampled by ``scale`` (``_warp``): (x, y) in its pixels."""
+    a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
+    wa, wb, wc = pix_bary[p, 0], pix_bary[p, 1], pix_bary[p, 2]
+    x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0]) + shift
+    y = scale * (wa * verts[a, 1] + wb * verts[b, 1] + wc * verts[c, 1]) + shift
+    return x, y
+
+
 @numba.njit(**NJIT)
 def _warp(image, verts, scale, shift, pix_vid, pix_bary, out):
     """Piecewise-affine warp with bilinear sampling: texture pixel p of channel ch takes the value of image
@@ -95,10 +105,7 @@ def _warp(image, verts, scale, shift, pix_vid, pix_bary, out):
     fys = np.empty(N)
     n_out = 0
     for p in range(N):
-        a, b, c = pix_vid[p, 0], pix_vid[p, 1], pix_vid[p, 2]
-        wa, wb, wc = pix_bary[p, 0], pix_bary[p, 1], pix_bary[p, 2]
-        x = scale * (wa * verts[a, 0] + wb * verts[b, 0] + wc * verts[c, 0]) + shift
-        y = scale * (wa * verts[a, 1] + wb * verts[b, 1] + wc * verts[c, 1]) + shift
+        x, y = _sample_at(verts, scale, shift, pix_vid, pix_bary, p)
         if x < 0.0 or y < 0.0 or x > W - 1 or y > H - 1:
             n_out += 1
             x = min(max(x, 0.0), W - 1.0)
@@ -159,16 +166,33 @@ def _finish_texture(tex, n_pixels, mode, rz):
 @numba.njit(**NJIT)
 def _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex):
     """tex (C * N,) float32 <- the finished texture of image (C, H, W) under q (see ``_warp``,
-    ``_finish_texture``). Scratch: verts (n, 2) float64."""
+    ``_finish_texture``). Scratch: verts (n, 2) float64. Returns how many texture pixels' samples fell outside the
+    image (``_warp``)."""
     _project(shape3d, basis, q, verts)
-    _warp(image, verts, scale, shift, pix_vid, pix_bary, tex)
+    n_out = _warp(image, verts, scale, shift, pix_vid, pix_bary, tex)
     _finish_texture(tex, pix_vid.shape[0], mode, q[2])
+    return n_out
+
+
+@numba.njit(**NJIT)
+def _fill_outside(image, verts, scale, shift, pix_vid, pix_bary, mean, tex):
+    """tex (C * N,) <- the mean texture's value at every texture pixel whose sample falls outside the image (C, H,
+    W) under verts (``_warp``'s test): a sample the image does not have leaves no residual (``_residual``)."""
+    C, H, W = image.shape
+    N = pix_vid.shape[0]
+    for p in range(N):
+        x, y = _sample_at(verts, scale, shift, pix_vid, pix_bary, p)
+        if x < 0.0 or y < 0.0 or x > W - 1 or y > H - 1:
+            for ch in range(C):
+                tex[ch * N + p] = mean[ch * N + p]
 
 
 @numba.njit(**NJIT)
 def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e):
     """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
-    basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D.
+    basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D. Texture pixels
+    whose sample falls outside the image (a face partly out of the frame) take the mean texture's value
+    (``_fill_outside``): the image's border smeared over them would pull the search towards it.
     Scratch: verts (n, 2) float64, tex (D,) float32, coef (m,) float64.
 
     The coefficients c = app^T (T - I_m) in one pass over the texture, four of its pixels at a time into all m sums
@@ -177,7 +201,8 @@ def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_ba
     D = 3860, m = 8, medians): the projection after the warp 33.4 -> 23.6 us against passes over the texture for four
     coefficients at a time (four scalar sums in flight; numba does not vectorise such straight-line code).
     """
-    _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex)
+    if _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex) > 0:
+        _fill_outside(image, verts, scale, shift, pix_vid, pix_bary, mean, tex)
     D = tex.shape[0]
     m = app.shape[1]
     for p in range(D):

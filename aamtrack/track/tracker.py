@@ -61,7 +61,10 @@ class TrackerConfig:
     accepted. A face that jumps further than the tracked search reaches (a hand-held camera's shake, a quick head
     move) was lost for a frame each time: the robustness suite's shake (cap12 moved by jumps of up to 0.35 eye
     distances a frame, 3D): 85.1% of its frames tracked -> 100%; frames a tracked search keeps cost nothing more.
-    min_inside: share of the 68 landmarks that must lie inside the frame.
+    min_inside: share of the 68 landmarks that must lie inside the frame. A face partly out of the frame is fitted
+    on what the frame shows (the search's texture pixels and the landmark cascade's patches outside it count as
+    missing: ``_kernels.warp._fill_outside``, ``_kernels.patches._blank_outside``), so half a face can be kept
+    (0.7 before those; see benchmarks/README.md, "robustness.py", partly out of the frame).
     max_turn, max_rescale: a frame whose fit turned more than ``max_turn`` radians about any axis or rescaled
     by more than ``max_rescale`` (log) since the previous frame is taken as lost: no head does that in 1/25 s,
     a search that slid onto the background does (the residual alone can miss it on textured backgrounds).
@@ -321,7 +324,7 @@ class TrackerConfig:
     the blank gaps never tracked. The results of a lost stretch come out up to this many frames late."""
 
     min_confidence: float = 0.5
-    min_inside: float = 0.7
+    min_inside: float = 0.5
     max_turn: float = 0.35
     max_rescale: float = 0.25
     max_shape_score: float = 1.2

@@ -164,6 +164,7 @@ def _toy_problem(rng, n_ch=2):
 
 
 def _slow_residual(image, shape3d, basis, q, mean, app, vid, bary, mode):
+    """The residual in numpy: texture pixels whose sample falls outside the image take the mean's value."""
     verts = np.empty((len(shape3d), 2))
     _project(shape3d, basis, q, verts)
     pos = np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
@@ -176,6 +177,9 @@ def _slow_residual(image, shape3d, basis, q, mean, app, vid, bary, mode):
         c, s = np.cos(q[2]), np.sin(q[2])
         gx, gy = tex[:N].copy(), tex[N:].copy()
         tex = np.r_[c * gx - s * gy, s * gx + c * gy]
+    H, W = image.shape[1:]
+    out = (pos[:, 0] < 0) | (pos[:, 1] < 0) | (pos[:, 0] > W - 1) | (pos[:, 1] > H - 1)
+    tex = np.where(np.tile(out, len(image)), mean, tex)
     e = tex - mean
     e = e - app @ (app.T @ e)
     return e, float(e @ e / len(e))
@@ -196,6 +200,26 @@ def test_residual_matches_reference(mode, n_ch):
     E = np.empty((2, D), np.float32)
     _residual_batch(image, 1.0, 0.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
     assert np.abs(E - e_ref).max() < 1e-4  # the batch is the same residual, row by row
+
+
+@pytest.mark.parametrize("mode,n_ch", [(0, 1), (1, 2)])
+def test_residual_leaves_out_the_samples_outside_the_image(mode, n_ch):
+    """A face partly out of the frame: texture pixels whose sample falls outside the image take the mean texture's
+    value (no residual there) instead of the border's value smeared over them; the rest as before."""
+    rng = np.random.default_rng(SEED)
+    image, shape3d, basis, vid, bary, q = _toy_problem(rng, n_ch)
+    q[4] = 8.0  # the mesh (about 40 px wide) about its centre at x = 8: a third of it left of the image
+    D = n_ch * len(vid)
+    mean = rng.normal(0, 1, D).astype(np.float32)
+    app = np.linalg.qr(rng.normal(0, 1, (D, 3)))[0].astype(np.float32)
+    verts, tex, e = np.empty((4, 2)), np.empty(D, np.float32), np.empty(D)
+    err = _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, verts, tex, np.empty(3), e)
+    pos = np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
+    out = np.tile(pos[:, 0] < 0, n_ch)
+    assert 0.2 < out.mean() < 0.5  # the premise: a good part of the texture lies outside
+    assert np.array_equal(tex[out], mean[out])  # those pixels read as the mean texture
+    e_ref, err_ref = _slow_residual(image, shape3d, basis, q, mean.astype(float), app.astype(float), vid, bary, mode)
+    assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
 
 
 @pytest.mark.parametrize("m", [0, 3, 8, 9])

@@ -159,7 +159,7 @@ def test_loss_reasons(synth_model):
     assert "low confidence" in tracker.loss_reason(replace(good, confidence=cfg.min_confidence - 0.01),
                                                    frame, p)
     outside = inside.copy()
-    outside[: int(0.4 * 68), 0] = -5.0  # 40% of the points left of the frame
+    outside[: int(0.6 * 68), 0] = -5.0  # 60% of the points left of the frame (``min_inside`` 0.5)
     assert "inside the frame" in tracker.loss_reason(replace(good, landmarks=outside), frame, p)
     turned = p.copy()
     turned[1] += cfg.max_turn + 0.05
@@ -638,7 +638,9 @@ def test_a_dim_tracked_frame_is_searched_again_with_the_middle_couple_whatever_i
                       soft_cascade=replace(model3d.soft_cascade, repeats=0))
     rng = np.random.default_rng(SEED + 3)
     faces, _, _, _ = synth3d.posed_faces(candide, 6, rng, yaw_sd=0.0, pitch_sd=0.0)
-    frames = [faces[0], np.roll(faces[0], 2, axis=1)]  # a detection, then the face moved by 2 px
+    face = np.pad(faces[0], [(40, 40), (40, 40)] + [(0, 0)] * (faces[0].ndim - 2), mode="edge")
+    # (padded so every sample of the searches lies inside the frame: none is left out as missing, ``_fill_outside``)
+    frames = [face, np.roll(face, 2, axis=1)]  # a detection, then the face moved by 2 px
     own = replace(model3d.landmark_validator)  # the landmark validator's weights as a distinct "dim" validator
     class Spy(Tracker):
         def fit_roi(self, image, starts, shape_params=None, *, first=0, **kw):

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from aamtrack.landmark_cascade import DescriptorSpec, similarity_to
+from aamtrack.landmark_cascade import DescriptorSpec, outside, similarity_to
 from aamtrack.metrics import nme
 from aamtrack.train.landmarks import learn_landmark_cascade, made_starts, reference_shape
 from tests.synth import random_faces
@@ -91,6 +91,18 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
         x_slow, z_slow, _ = cascade.run_slow(dark, 1.0, s, gain=5.0)
         assert np.abs(x_gain - x_slow).max() < 1e-3
         assert np.abs(cascade.apply(dark, 1.0, s) - x_gain).max() > 1e-2  # px: without it the dark face moves less
+        # a face 40% past the image's left edge: the points whose patch lies wholly outside read the stage's mean
+        # descriptor (z = 0), compiled and numpy alike, rather than the border smeared over their patch
+        cut = s - [s[:, 0].min() + 0.4 * np.ptp(s[:, 0]), 0.0]
+        k = last.n_stages - 1
+        gone = outside(g, 1.0, cut, last.halves[k], similarity_to(last.ref, cut)[0])
+        assert 0 < gone.sum() < 68  # the premise: some patches wholly outside, most not
+        z_cut = last.read(g, 1.0, cut).reshape(68, -1)
+        assert not z_cut[gone].any() and np.abs(z_cut[~gone]).sum(1).min() > 0
+        _, z_run, _ = last.run(g, 1.0, cut, first=k, repeats=0)
+        assert np.abs(z_run.reshape(68, -1) - z_cut).max() < 5e-4 * max(1.0, np.abs(z_cut).max())
+        (x, _, _), (x_slow, _, _) = cascade.run(g, 1.0, cut), cascade.run_slow(g, 1.0, cut)
+        assert np.abs(x - x_slow).max() < 1e-3  # px
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():

@@ -212,11 +212,15 @@ def resize_area(img: np.ndarray, k: float) -> np.ndarray:
 
 class Levels:
     """The images one frame (or crop) offers the couples: ``get(r)`` resamples by r and computes the feature
-    image (C, h, w) float32, once per factor."""
+    image (C, h, w) float32, once per factor. ``edge``: the image reaches the frame's edge (``Tracker.crop``: a crop
+    that touches it), where what lies past it is missing rather than the border's value
+    (``_kernels.warp._residual``'s ``fill``, ``_kernels.patches._blank_outside``); off by default (training reads
+    its photos as the shipped models learned them)."""
 
-    def __init__(self, gray: np.ndarray, features: Features):
+    def __init__(self, gray: np.ndarray, features: Features, *, edge: bool = False):
         self.gray = np.ascontiguousarray(gray, dtype=np.float32)
         self.features = features
+        self.edge = edge  # whether the image's edges are the picture's (not a crop's inside it): ``Searcher.fit``
         self._cache: dict[float, np.ndarray] = {}
         self._raw: dict[float, np.ndarray] = {1.0: self.gray}
 

@@ -88,13 +88,14 @@ def texture(image, scale: float, shift: float, shape3d, basis, q, pix_vid, pix_b
 
 
 def residual(image, scale: float, shift: float, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode: int,
-             verts, tex, coef, e) -> float:
-    """e (D,) float64 <- the projected residual at q; returns |e|^2 / D. verts, tex, coef: scratch."""
+             verts, tex, coef, e, *, fill: bool = True) -> float:
+    """e (D,) float64 <- the projected residual at q; returns |e|^2 / D. verts, tex, coef: scratch. ``fill``:
+    samples outside the image read as the mean texture (``_kernels.warp._residual``)."""
     shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
     return _k._residual(_in(image, F32, 3, "image"), float(scale), float(shift), shape3d, basis, _in(q, F64, 1, "q"),
                         _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode),
                         _out(verts, F64, 2, "verts"), _out(tex, F32, 1, "tex"), _out(coef, F64, 1, "coef"),
-                        _out(e, F64, 1, "e"))
+                        _out(e, F64, 1, "e"), bool(fill))
 
 
 def residual_batch(image, scale: float, shift: float, shape3d, basis, Q, mean, app, pix_vid, pix_bary,
@@ -108,7 +109,7 @@ def residual_batch(image, scale: float, shift: float, shape3d, basis, Q, mean, a
 
 
 def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, quantised, scales, b, mean, app,
-            pix_vid, pix_bary, mode: int, verts, tex, coef, e, delta) -> float:
+            pix_vid, pix_bary, mode: int, verts, tex, coef, e, delta, *, fill: bool = True) -> float:
     """The learned update cascade on one couple, q (n_q,) float64 updated in place (``_kernels.warp._cascade``),
     its matrices as ``Couple.quantised`` gives them (quantised (n_stages, D, n_free) int16, scales (n_stages,
     n_free) float32). Returns the last stage's mean squared residual."""
@@ -119,11 +120,12 @@ def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, 
                        _in(b, F64, 2, "cascade_bias"), _in(mean, F32, 1, "mean"),
                        _in(app, F32, 2, "appearance"), pix_vid, pix_bary, int(mode), _out(verts, F64, 2, "verts"),
                        _out(tex, F32, 1, "tex"), _out(coef, F64, 1, "coef"), _out(e, F64, 1, "e"),
-                       _out(delta, F64, 1, "delta"))
+                       _out(delta, F64, 1, "delta"), bool(fill))
 
 
 def search(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app,
-           pix_vid, pix_bary, mode: int, max_iter: int, tol: float, n_steps: int, delta_tol) -> tuple[int, float]:
+           pix_vid, pix_bary, mode: int, max_iter: int, tol: float, n_steps: int, delta_tol, *,
+           fill: bool = True) -> tuple[int, float]:
     """The Jacobian active search on one couple, q updated in place (``_kernels.warp._search``).
     Returns (iterations, final cost)."""
     shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
@@ -132,7 +134,7 @@ def search(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, U
                       _in(U, F32, 2, "update_matrix"), _in(prior_step, F64, 2, "prior_step"),
                       _in(prior, F64, 1, "prior"), _in(mean, F32, 1, "mean"), _in(app, F32, 2, "appearance"),
                       pix_vid, pix_bary, int(mode), int(max_iter), float(tol), int(n_steps),
-                      _in(delta_tol, F64, 1, "delta_tol"))
+                      _in(delta_tol, F64, 1, "delta_tol"), bool(fill))
 
 
 def accumulate_gradient(image, scale: float, shift: float, shape3d, basis, q0, free, steps, mean, app, pix_vid,
@@ -177,15 +179,16 @@ def landmark_training_rows(image, scale: float, shift: float, starts, truth, ref
 
 def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_mean, basis, quantised, scales,
                      expand, biases, shape_regressors, shape_from: int, *, cells: int, cell: int, bins: int,
-                     floor: float, feat, shape, prior, repeats: int = 0) -> np.ndarray:
+                     floor: float, feat, shape, prior, repeats: int = 0, blank: bool = False) -> np.ndarray:
     """Run every stage of a landmark cascade (``aamtrack._kernels.patches._landmark_cascade``) on pts (L, 2)
     float64, moved in place, on the grey ``image`` (H, W) float32 resampled by ``scale``, the last stage
     ``repeats`` more times; the stages' regressors of rank r as ``LandmarkCascade.quantised`` gives them (quantised
     (K, 68 d, r) int16 and scales (K, r) float32 of their row factors, expand (K, r, 2 L) float32 the column
     factors transposed); the stages from ``shape_from`` on read the points' shape; feat
     (L, cells * cells * bins) and shape (2 L,) float32 scratch;
-    prior (L, 2) float64 <- the shape term's part of the move. Returns (L, d) float32: the last stage's projected
-    descriptors."""
+    prior (L, 2) float64 <- the shape term's part of the move; ``blank``: a point whose patch lies wholly outside the
+    image reads the stage's mean descriptor (``_blank_outside``). Returns (L, d) float32: the last stage's
+    projected descriptors."""
     return _p._landmark_cascade(_patch_image(image), float(scale), float(shift), _out(pts, F64, 2, "pts"),
                          _in(ref, F64, 2, "ref"), _in(halves, F64, 1, "halves"), _in(basis_mean, F32, 2, "basis_mean"),
                          _in(basis, F32, 3, "basis"), _in(quantised, I16, 3, "quantised"),
@@ -193,7 +196,7 @@ def landmark_cascade(image, scale: float, shift: float, pts, ref, halves, basis_
                          _in(biases, F64, 2, "biases"), _in(shape_regressors, F32, 3, "shape_regressors"),
                          int(shape_from), int(repeats), int(cells), int(cell), int(bins), float(floor),
                          _out(feat, F32, 2, "feat"),
-                         _out(shape, F32, 1, "shape"), _out(prior, F64, 2, "prior"))
+                         _out(shape, F32, 1, "shape"), _out(prior, F64, 2, "prior"), bool(blank))
 
 
 def landmark_residuals_jacobian(x, free_pose, n_coef: int, fit_sigma: bool, sigma_fixed, LM, LS, LA, points,

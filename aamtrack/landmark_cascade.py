@@ -348,11 +348,13 @@ class LandmarkCascade:
         ``repeats`` more times), on ``image`` (the grey frame resampled by ``scale``); ``run``'s points."""
         return self.run(image, scale, pts, first)[0]
 
-    def run(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0,
-            repeats: int | None = None, gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def run(self, image: np.ndarray, scale: float, pts: np.ndarray, first: int = 0, repeats: int | None = None,
+            gain: float = 1.0, blank: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``apply`` in one compiled call (``kernels.landmark_cascade``; ``run_slow`` is the same in numpy steps),
         the last stage ``repeats`` more times (default: the cascade's own ``repeats``), the descriptors read as if
-        the image were multiplied by ``gain`` (``descriptor_gain``).
+        the image were multiplied by ``gain`` (``descriptor_gain``); ``blank``: a point whose patch lies wholly
+        outside the image reads the stage's mean descriptor (``outside``: where the image's edge is the frame's,
+        ``Levels.edge``; off by default, as training reads its photos).
         Returns (points (68, 2), z (68 d,) float32, prior (68, 2)): z the last stage's projected descriptors, read
         at the points just before its update (within about 0.01 eye distances of the final ones), what the
         landmark validator weighs (``model.Validator``): what the face looks like around each point, at no extra
@@ -367,18 +369,20 @@ class LandmarkCascade:
                              self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor / gain,
                              feat=np.empty((len(x), sp.size), np.float32), shape=np.empty(2 * len(x), np.float32),
-                             prior=prior, repeats=self.repeats if repeats is None else repeats)
+                             prior=prior, repeats=self.repeats if repeats is None else repeats, blank=blank)
         return x, z.reshape(-1), prior
 
-    def read(self, image: np.ndarray, scale: float, pts: np.ndarray, gain: float = 1.0) -> np.ndarray:
+    def read(self, image: np.ndarray, scale: float, pts: np.ndarray, gain: float = 1.0,
+             blank: bool = False) -> np.ndarray:
         """(68 d,) float32: the last stage's projected descriptors at the points pts (68, 2) (frame pixels) on
         ``image`` (the grey frame resampled by ``scale``), read as if it were multiplied by ``gain``: ``run``'s z
-        read at given points."""
+        read at given points (``blank`` as ``run``'s)."""
         k = self.n_stages - 1
         M, _ = similarity_to(self.ref, pts)
         z = project_descriptors(descriptors(self.spec, image, scale, pts, self.halves[k], M, gain=gain),
                                 self.basis_mean[k], self.basis[k]).reshape(len(pts), -1)
-        z[outside(image, scale, pts, self.halves[k], M)] = 0.0
+        if blank:
+            z[outside(image, scale, pts, self.halves[k], M)] = 0.0
         return z.reshape(-1)
 
     def apply_slow(self, image: np.ndarray, scale: float, pts: np.ndarray) -> np.ndarray:
@@ -386,7 +390,7 @@ class LandmarkCascade:
         return self.run_slow(image, scale, pts)[0]
 
     def run_slow(self, image: np.ndarray, scale: float, pts: np.ndarray,
-                 gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 gain: float = 1.0, blank: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``run`` (all stages, the last one ``repeats`` more times) stage by stage in numpy (the regressors of
         rank ``rank``, unquantised)."""
         x = np.array(pts, dtype=np.float64)
@@ -399,7 +403,8 @@ class LandmarkCascade:
             M, _ = similarity_to(self.ref, x)
             z = project_descriptors(descriptors(self.spec, image, scale, x, half, M, buf, gain), self.basis_mean[k],
                                     self.basis[k])
-            z.reshape(len(x), -1)[outside(image, scale, x, half, M)] = 0.0  # (a view: z stays flat)
+            if blank:
+                z.reshape(len(x), -1)[outside(image, scale, x, half, M)] = 0.0  # (a view: z stays flat)
             ds = (self.shape_regressors[k] @ shape_features(self.ref, x, M)).reshape(-1, 2) @ M
             prior += ds
             x += (self.applied[k] @ z + self.biases[k]).reshape(-1, 2) @ M + ds

@@ -66,9 +66,10 @@ class Searcher:
         return np.where(free <= 3, tol, np.where(free < N_POSE, tol * self.width,
                                                 5 * tol * self.model.shape.spreads()[free]))
 
-    def levels(self, gray: np.ndarray) -> Levels:
-        """The feature images of a grey frame (H, W) float32 for the couples, built on demand."""
-        return Levels(gray, self.model.features)
+    def levels(self, gray: np.ndarray, *, edge: bool = False) -> Levels:
+        """The feature images of a grey frame (H, W) float32 for the couples, built on demand (``edge``: what lies
+        past its edges is missing, as past the frame's, ``Levels``)."""
+        return Levels(gray, self.model.features, edge=edge)
 
     def factors(self, p: np.ndarray) -> list[float]:
         """Each couple's resampling factor for the face size of p (``imaging.level_factor``)."""
@@ -83,20 +84,20 @@ class Searcher:
         lo[n_q:] = hi[n_q:] = np.clip(shape_params, self.lo[n_q:], self.hi[n_q:])
         return lo, hi
 
-    def _couple_run(self, c, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi) -> int:
+    def _couple_run(self, c, k: int, img: np.ndarray, r: float, p: np.ndarray, lo, hi, fill: bool) -> int:
         """One couple c (the model's couple k, or its soft twin) on p (in place) on the level ``img`` resampled by
-        r. Returns iterations."""
+        r (``fill``: samples past its edge read as missing, ``kernels.residual``). Returns iterations."""
         t = self.model.textures[c.texture]
         shift = level_shift(r)
         if c.n_stages:
             verts, tex, coef, e, delta = self._scratch[len(t.mean)]
             cascade(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, *c.quantised, c.cascade_bias, t.mean,
                     t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex,
-                    coef[:t.appearance.shape[1]], e, delta[:len(c.free)])
+                    coef[:t.appearance.shape[1]], e, delta[:len(c.free)], fill=fill)
             return c.n_stages
         n_it, _ = search(img, r, shift, self.shape3d, self.basis, p, c.free, lo, hi, c.update_matrix, c.prior_step,
                          c.prior, t.mean, t.appearance, t.frame.pix_vid, t.frame.pix_bary, self.mode, MAX_ITER, TOL,
-                         N_STEPS, self._delta_tol[k])
+                         N_STEPS, self._delta_tol[k], fill=fill)
         return int(n_it)
 
     def fit(self, levels: Levels, p0: np.ndarray, shape_params: np.ndarray | None = None, *,
@@ -120,7 +121,7 @@ class Searcher:
                                              self.model.shape.landmark_map @ self.project(p))
         elif self.model.soft_couples and soft:
             couples = self.model.soft_couples
-        iters = tuple(self._couple_run(couples[k], k, levels.get(factors[k]), factors[k], p, lo, hi)
+        iters = tuple(self._couple_run(couples[k], k, levels.get(factors[k]), factors[k], p, lo, hi, levels.edge)
                       for k in range(first, len(couples)))
         stats = self.statistics(levels, p, factors[-1])
         verts = self.project(p)
@@ -160,9 +161,10 @@ class Searcher:
         if by_dim and dim:
             lc = self.model.dim_cascade
         view, gain = descriptor_view(img, r, res.landmarks) if self.adaptive_view else (img, 1.0)
-        pts, z, prior = lc.run(view, r, res.landmarks, first, repeats, gain)
+        pts, z, prior = lc.run(view, r, res.landmarks, first, repeats, gain, blank=levels.edge)
         if view is not img:  # the validators learned faces as they are (``descriptor_view``); a face noisy enough
-            z = lc.read(img, r, pts)  # to be smoothed is past the gain's noise cap: its gain as it is is 1
+            # to be smoothed is past the gain's noise cap: its gain as it is is 1
+            z = lc.read(img, r, pts, blank=levels.edge)
         lv = self.model.validator_for(img, r, pts, soft=soft)
         conf = res.confidence if lv is None else lv(res.stats, z)
         return replace(res, landmarks=pts, confidence=conf, landmark_prior=prior,
@@ -185,7 +187,7 @@ class Searcher:
         verts, tex, coef, e, _ = self._scratch[len(t.mean)]
         m = t.appearance.shape[1]
         err = residual(levels.get(r), r, level_shift(r), self.shape3d, self.basis, p, t.mean, t.appearance,
-                       t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:m], e)
+                       t.frame.pix_vid, t.frame.pix_bary, self.mode, verts, tex, coef[:m], e, fill=levels.edge)
         tn = float(np.linalg.norm(tex))
         corr = float(np.dot(tex, t.mean) / (tn * self._mean_norm[c.texture])) if tn > 1e-9 else 0.0
         energy = tn / math.sqrt(len(tex))

@@ -8,7 +8,10 @@ Each variant covers the face in stretches of ``SPAN`` frames every ``EVERY`` fra
 placed on each frame from the reference points (so it moves with the face): ``mouth`` a skin-coloured ellipse over
 the mouth and chin, ``eye`` a smaller one over the right eye (the image's left), ``half`` a tall one over the image's
 left half of the face, ``mic`` a dark grey microphone (a ball at the lower lip on a stem down to the frame's
-bottom). Per variant and model: on the covered frames, the share tracked, the mean NME of the tracked ones over all
+bottom), ``edge`` the frame's own left edge: the picture moved left so the face slides until ``EDGE_SHARE`` of its
+width lies past the edge, at the stretch's middle, and back (2026-12-02: a speaker leaning out of shot; edges
+replicated on the right; the reference moves with the picture and the points past the edge count as covered).
+Per variant and model: on the covered frames, the share tracked, the mean NME of the tracked ones over all
 68 points and over the points the occluder leaves visible, how many tracked ones lie above NME 0.10 and their mean
 confidence; on the ``AFTER`` frames after each stretch, the share tracked and NME (how the track comes back); on
 every uncovered frame the NME next to the clean video's. What a tracker should do: keep the visible points where
@@ -45,7 +48,8 @@ from aamtrack.metrics import nme  # noqa: E402
 
 START, SPAN, EVERY, AFTER = 100, 50, 200, 10
 SKIN, MIC = (120, 150, 200), (45, 45, 50)  # BGR
-VARIANTS = ("mouth", "eye", "half", "mic")
+VARIANTS = ("mouth", "eye", "half", "mic", "edge")
+EDGE_SHARE = 0.4  # edge: the share of the face's width past the frame's left edge at most
 
 
 def occluder_mask(kind: str, points: np.ndarray, shape: tuple) -> np.ndarray:
@@ -70,8 +74,19 @@ def occluder_mask(kind: str, points: np.ndarray, shape: tuple) -> np.ndarray:
         half = int(round(0.08 * eye))
         cv2.rectangle(mask, (int(head[0]) - half, int(head[1])), (int(head[0]) + half, shape[0] - 1), 1, -1)
     else:
-        raise ValueError(f"unknown occluder {kind!r}: expected one of {', '.join(VARIANTS)}")
+        raise ValueError(f"unknown occluder {kind!r}: expected one of {', '.join(v for v in VARIANTS if v != 'edge')}")
     return mask.astype(bool)
+
+
+def past_the_edge(image: np.ndarray, points: np.ndarray, share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(image moved left so ``share`` of the face's width (points (68, 2), package pixels) lies past the frame's left
+    edge, its right edge replicated; the points moved with it; visible (68,) bool: the points still inside)."""
+    dx = -(float(np.min(points[:, 0]) - 1.0) + share * float(np.ptp(points[:, 0])))
+    h, w = image.shape[:2]
+    out = cv2.warpAffine(image, np.array([[1.0, 0.0, dx], [0.0, 1.0, 0.0]]), (w, h), flags=cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE)
+    moved = points + [dx, 0.0]
+    return out, moved, moved[:, 0] - 1.0 >= 0.0
 
 
 def covered_frames(n: int) -> np.ndarray:
@@ -92,21 +107,35 @@ def occluded(image: np.ndarray, points: np.ndarray, kind: str) -> tuple[np.ndarr
     return out, ~mask[xy[:, 1], xy[:, 0]]
 
 
-def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.ndarray, np.ndarray]:
+def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
     """(frames with the occluder drawn on the covered ones, covered (n,) bool, visible (n, 68) bool: each
-    reference point outside the occluder)."""
+    reference point outside the occluder, the reference (n, 68, 2) as the frames show it: moved on ``edge``'s
+    covered frames, where the face slides out over the first half of each stretch and back over the second
+    (``past_the_edge``; the slide's start: the face moved from where it is, not cut to the edge at once)."""
     covered = covered_frames(len(frames))
     visible = np.ones(ref.shape[:2], bool)
+    moved = np.array(ref, np.float64, copy=True)
     out = list(frames)
     for i in np.flatnonzero(covered):
-        out[i], visible[i] = occluded(frames[i], ref[i], kind)
-    return out, covered, visible
+        if kind == "edge":
+            u = np.sin(np.pi * ((i - START) % EVERY + 0.5) / SPAN)  # 0 -> 1 -> 0 over the stretch
+            left = float(np.min(ref[i, :, 0]) - 1.0)
+            width = float(np.ptp(ref[i, :, 0]))
+            out[i], moved[i], visible[i] = past_the_edge(frames[i], ref[i], u * EDGE_SHARE - (1.0 - u) * left / width)
+        else:
+            out[i], visible[i] = occluded(frames[i], ref[i], kind)
+    return out, covered, visible, moved
 
 
-def occluded_stills(images: list, points: np.ndarray, kind: str) -> tuple[list, np.ndarray]:
-    """(every image with the occluder drawn from its points, visible (n, 68) bool)."""
+def occluded_stills(images: list, points: np.ndarray, kind: str) -> tuple[list, np.ndarray, np.ndarray]:
+    """(every image with the occluder drawn from its points, visible (n, 68) bool, the points as the images show
+    them: ``edge`` moves each image so ``EDGE_SHARE`` of its face lies past the left edge)."""
+    if kind == "edge":
+        cut = [past_the_edge(im, p, EDGE_SHARE) for im, p in zip(images, points, strict=True)]
+        return [im for im, _, _ in cut], np.array([v for _, _, v in cut], bool), np.array([p for _, p, _ in cut])
     drawn = [occluded(im, p, kind) for im, p in zip(images, points, strict=True)]
-    return [im for im, _ in drawn], np.array([v for _, v in drawn], bool).reshape(points.shape[:2])
+    return ([im for im, _ in drawn], np.array([v for _, v in drawn], bool).reshape(points.shape[:2]),
+            np.asarray(points, np.float64))
 
 
 def _errors(success, landmarks, ref, visible) -> tuple[np.ndarray, np.ndarray]:
@@ -190,12 +219,12 @@ def _video_rows(models, kinds, path: Path, args, report) -> None:
         ok, lm, _ = _track(tracker, frames)
         clean = np.array([float(nme(lm[i], ref[i])) if ok[i] else np.nan for i in range(len(ref))])
         for kind in kinds:
-            images, covered, visible = occluded_video(frames, ref, kind)
+            images, covered, visible, shown = occluded_video(frames, ref, kind)
             if args.write:
                 _write_video(args.write / f"occluded_{kind}.avi", images)
             success, landmarks, confidence = _track(tracker, images)
             row = {"set": "video", "variant": kind, "model": str(model_path),
-                   **score(success, landmarks, confidence, ref, covered, visible, clean)}
+                   **score(success, landmarks, confidence, shown, covered, visible, clean)}
             report["rows"].append(row)
             print(f"| {kind} | {model_path.name} | {row['covered_tracked']:.1%} | {row['covered_nme']:.4f} / "
                   f"{row['covered_visible_nme']:.4f} | {row['covered_above_010']} | {row['covered_confidence']:.2f} | "
@@ -215,11 +244,11 @@ def _still_rows(models, kinds, folder: Path, args, report) -> None:
     for model_path in models:
         tracker = _tracker(model_path, args.max_shape_score)
         for kind in ("clean", *kinds):
-            occluded, visible = (images, np.ones(points.shape[:2], bool)) if kind == "clean" else \
+            occluded, visible, shown = (images, np.ones(points.shape[:2], bool), points) if kind == "clean" else \
                 occluded_stills(images, points, kind)
             success, landmarks, confidence = _collect(tracker.fit_still(_Frame(0, 0.0, im)) for im in occluded)
             row = {"set": "stills", "variant": kind, "model": str(model_path),
-                   **score_stills(success, landmarks, confidence, points, visible)}
+                   **score_stills(success, landmarks, confidence, shown, visible)}
             report["rows"].append(row)
             print(f"| {kind} | {model_path.name} | {row['within']:.1%} ({row['fitted']}) | {row['nme']:.4f} / "
                   f"{row['visible_nme']:.4f} | {row['above_010']} ({row['above_010_confidence']:.2f}) "

@@ -46,8 +46,8 @@ def test_covered_stretches_and_visible_points():
     assert covered.sum() == 2 * oc.SPAN  # 100-149 and 300-349: a third would end past the last frame
     frames = [np.full((*SIZE, 3), 90, np.uint8) for _ in range(n)]
     ref = np.stack([_face() for _ in range(n)])
-    images, cov, visible = oc.occluded_video(frames, ref, "mouth")
-    assert np.array_equal(cov, covered) and images[0] is frames[0]
+    images, cov, visible, shown = oc.occluded_video(frames, ref, "mouth")
+    assert np.array_equal(cov, covered) and images[0] is frames[0] and np.array_equal(shown, ref)
     assert (images[oc.START] == oc.SKIN).all(axis=2).any() and not (images[0] == oc.SKIN).all(axis=2).any()
     assert not visible[oc.START, 48:68].any() and visible[oc.START, 36:48].all() and visible[0].all()
 
@@ -76,7 +76,8 @@ def test_scores_count_what_they_say():
 def test_occluded_stills_and_their_scores():
     pts = np.stack([_face(), _face(cx=180.0, width=100.0)])
     images = [np.full((*SIZE, 3), 90, np.uint8) for _ in range(2)]
-    out, visible = oc.occluded_stills(images, pts, "eye")
+    out, visible, shown = oc.occluded_stills(images, pts, "eye")
+    assert np.array_equal(shown, pts)
     assert all((o == oc.SKIN).all(axis=2).any() for o in out) and (images[0] == 90).all()  # drawn on copies
     assert not visible[:, 36:42].any() and visible[:, 42:48].all() and visible[:, 48:].all()
     eye = np.linalg.norm(pts[:, 45] - pts[:, 36], axis=1)
@@ -98,3 +99,32 @@ def test_occluded_stills_and_their_scores():
         "spearman_confidence_nme"] == pytest.approx(-1.0)  # the more confident, the closer
     assert oc.score_stills(np.ones(3, bool), off, np.array([0.3, 0.8, 0.9]), three, vis3)[
         "spearman_confidence_nme"] == pytest.approx(1.0)
+
+
+def test_the_frames_edge_slides_the_face_out_and_back_with_its_reference():
+    """``edge``: over each covered stretch the picture moves left until EDGE_SHARE of the face's width lies past the
+    frame's edge (at the stretch's middle) and back; the reference moves with the picture (a dot drawn at a point
+    is where the moved point says), the points past the edge count as hidden, the frames outside the stretches
+    are untouched."""
+    n = 420
+    ref = np.stack([_face() for _ in range(n)])
+    frames = []
+    for p in ref:
+        im = np.full((*SIZE, 3), 90, np.uint8)
+        x, y = np.rint(p[30] - 1.0).astype(int)  # a dot at the nose tip (OpenCV's pixels)
+        im[y - 1:y + 2, x - 1:x + 2] = 250
+        frames.append(im)
+    images, covered, visible, shown = oc.occluded_video(frames, ref, "edge")
+    assert images[0] is frames[0] and np.array_equal(shown[~covered], ref[~covered]) and visible[~covered].all()
+    mid = oc.START + oc.SPAN // 2
+    width = np.ptp(ref[mid, :, 0])
+    past = -(shown[mid, :, 0].min() - 1.0) / width  # the share of the width past the edge
+    assert abs(past - oc.EDGE_SHARE) < 0.01
+    assert 0.2 < 1 - visible[mid].mean() < 0.6 and not visible[mid][shown[mid, :, 0] < 1.0].any()
+    first = oc.START
+    assert np.abs(shown[first] - ref[first]).max() < 0.05 * width  # the slide starts where the face is
+    for i in (first + 5, mid, first + oc.SPAN - 5):
+        x, y = np.rint(shown[i, 30] - 1.0).astype(int)
+        assert x >= 1 and images[i][y, x].max() > 200  # the dot (in the frame: 40% out at most) moved with the point
+    out, vis, pts = oc.occluded_stills([frames[0]], ref[:1], "edge")
+    assert abs(-(pts[0, :, 0].min() - 1.0) / np.ptp(ref[0, :, 0]) - oc.EDGE_SHARE) < 1e-9 and not vis[0].all()

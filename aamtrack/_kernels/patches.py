@@ -321,19 +321,19 @@ def _expand(Ut, t, out):
 
 @numba.njit(**NJIT)
 def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q, Qs, Ut, b, S, shape_from, repeats,
-                      cells, cell, bins, floor, feat, shape, prior):
+                      cells, cell, bins, floor, feat, shape, prior, blank=False):
     """The whole landmark cascade on pts (L, 2) float64 (frame pixels, moved in place): per stage k, the similarity
     M = [[a, c], [-c, a]] taking the centred reference ref (L, 2) to pts (least squares), the descriptors
     (``_descriptors``, into feat (L, cells * cells * bins) float32) on a grid of step 2 halves[k] / (cells * cell +
     1) reference units, each point's descriptor projected on the stage's basis (z = (feat - basis_mean[k]) basis[k],
-    (L, d); 0 for a point whose patch lies outside img, ``_blank_outside``), and pts += (R[k] z + S[k] s + b[k]) @ M per point, R[k]
-    of rank r as U[k] W[k] (``landmark_cascade.factorise``): W[k] (r, 68 d) as int16, transposed, with per-row
-    scales (Q (K, 68 d, r), Qs (K, r), ``_qmatvec``), U[k] (2 L, r) transposed, Ut (K, r, 2 L) float32
-    (``_expand``), where the stages from ``shape_from`` on read the points' own shape in the reference frame (s =
-    (pts - centroid) M^-1 - ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2) float64 <- the sum of
-    the (S[k] s) @ M moves. The last stage runs ``repeats`` more times, each on the points as the one before left
-    them. Returns the last stage's z (what the landmark validator weighs: the face around each point just before the
-    last, smallest update)."""
+    (L, d); with ``blank``, 0 for a point whose patch lies outside img, ``_blank_outside``), and pts += (R[k] z +
+    S[k] s + b[k]) @ M per point, R[k] of rank r as U[k] W[k] (``landmark_cascade.factorise``): W[k] (r, 68 d) as
+    int16, transposed, with per-row scales (Q (K, 68 d, r), Qs (K, r), ``_qmatvec``), U[k] (2 L, r) transposed, Ut
+    (K, r, 2 L) float32 (``_expand``), where the stages from ``shape_from`` on read the points' own shape in the
+    reference frame (s = (pts - centroid) M^-1 - ref, into shape (2 L,) float32; S[k] is zero before). prior (L, 2)
+    float64 <- the sum of the (S[k] s) @ M moves. The last stage runs ``repeats`` more times, each on the points as
+    the one before left them. Returns the last stage's z (what the landmark validator weighs: the face around each
+    point just before the last, smallest update)."""
     L = pts.shape[0]
     side = cells * cell
     n2 = _squared_norm(ref)
@@ -350,7 +350,8 @@ def _landmark_cascade(img, scale, shift, pts, ref, halves, basis_mean, basis, Q,
         _descriptors(img, pts, scale, shift, step * a, -step * c, step * c, step * a, cells, cell, bins, floor,
                      feat)
         z = np.dot(feat - basis_mean[k], basis[k])
-        _blank_outside(img, scale, shift, pts, halves[k] * math.sqrt(a * a + c * c) * scale, z)
+        if blank:
+            _blank_outside(img, scale, shift, pts, halves[k] * math.sqrt(a * a + c * c) * scale, z)
         _qmatvec(Q[k], Qs[k], z.reshape(-1), acc, t)
         _expand(Ut[k], t, d)
         if k >= shape_from and _shape_in_frame(pts, ref, a, c, mx, my, shape):

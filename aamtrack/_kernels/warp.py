@@ -188,11 +188,14 @@ def _fill_outside(image, verts, scale, shift, pix_vid, pix_bary, mean, tex):
 
 
 @numba.njit(**NJIT)
-def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e):
+def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
+              fill=True):
     """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
-    basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D. Texture pixels
-    whose sample falls outside the image (a face partly out of the frame) take the mean texture's value
-    (``_fill_outside``): the image's border smeared over them would pull the search towards it.
+    basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D. With ``fill``,
+    texture pixels whose sample falls outside the image take the mean texture's value (``_fill_outside``): where
+    the image's edge is the frame's (a face partly out of the frame), the border smeared over them would pull the
+    search towards it. Without it (a crop inside the frame, whose edges are not the picture's, and training,
+    as the shipped models learned) they read the border as ``_warp`` samples it.
     Scratch: verts (n, 2) float64, tex (D,) float32, coef (m,) float64.
 
     The coefficients c = app^T (T - I_m) in one pass over the texture, four of its pixels at a time into all m sums
@@ -201,7 +204,7 @@ def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_ba
     D = 3860, m = 8, medians): the projection after the warp 33.4 -> 23.6 us against passes over the texture for four
     coefficients at a time (four scalar sums in flight; numba does not vectorise such straight-line code).
     """
-    if _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex) > 0:
+    if _texture(image, scale, shift, shape3d, basis, q, pix_vid, pix_bary, mode, verts, tex) > 0 and fill:
         _fill_outside(image, verts, scale, shift, pix_vid, pix_bary, mean, tex)
     D = tex.shape[0]
     m = app.shape[1]
@@ -274,7 +277,7 @@ def _prior_cost(q, free, prior):
 
 @numba.njit(**NJIT)
 def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
-            mode, max_iter, tol, n_steps, delta_tol):
+            mode, max_iter, tol, n_steps, delta_tol, fill=True):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
     1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does,
     when the cost falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
@@ -284,7 +287,7 @@ def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step,
     prior_step = (G^T G + diag(prior))^-1 diag(prior) make delta its Gauss-Newton step (prior is 0 for
     the pose). U (n_free, N) float32, prior_step (n_free, n_free) float64, prior (n_free,) float64.
     The search also stops, without trying it, when every |delta[a]| is below delta_tol[a] (n_free,).
-    Returns (iterations, final cost).
+    ``fill``: as ``_residual``'s. Returns (iterations, final cost).
     """
     n = shape3d.shape[0]
     N = mean.shape[0]
@@ -295,7 +298,8 @@ def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step,
     e_try = np.empty(N)
     q_try = np.empty_like(q)
     delta = np.empty(free.shape[0])
-    err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+    err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
+                    fill)
     err += _prior_cost(q, free, prior) / N
     it = 0
     while it < max_iter:
@@ -320,7 +324,7 @@ def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step,
         for _ in range(n_steps):
             _compose(q, free, delta, step, lo, hi, q_try)
             err_try = _residual(image, scale, shift, shape3d, basis, q_try, mean, app, pix_vid, pix_bary, mode,
-                                verts, tex, coef, e_try) + _prior_cost(q_try, free, prior) / N
+                                verts, tex, coef, e_try, fill) + _prior_cost(q_try, free, prior) / N
             if err_try < err:
                 accepted = True
                 break
@@ -355,7 +359,8 @@ def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, m
     delta = np.zeros(free.shape[0])
     no_lo = np.full(q0.shape[0], -np.inf)
     no_hi = np.full(q0.shape[0], np.inf)
-    _residual(image, scale, shift, shape3d, basis, q0, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e0)
+    _residual(image, scale, shift, shape3d, basis, q0, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e0,
+              False)
     for a in range(free.shape[0]):
         denom = 0.0
         for k in range(steps.shape[1]):
@@ -365,7 +370,8 @@ def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, m
             d = steps[a, k]
             delta[a] = d
             _compose(q0, free, delta, 1.0, no_lo, no_hi, q)
-            _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+            _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
+                      False)
             for p in range(N):
                 G[p, a] += d * (e[p] - e0[p]) / denom
         delta[a] = 0.0
@@ -374,14 +380,14 @@ def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, m
 
 @numba.njit(**NJIT)
 def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, Q, Qs, b, mean, app, pix_vid, pix_bary, mode,
-             verts, tex, coef, e, delta):
+             verts, tex, coef, e, delta, fill=True):
     """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
     delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
 
     Parameters whose bounds are equal (pinned) are not updated (delta 0). R[s] as int16, transposed, with
     per-row scales (``landmark_cascade.quantise_rows``: Q (n_stages, D, n_free) int16, Qs (n_stages, n_free)
     float32; ``patches._qmatvec`` on e in float32), b (n_stages, n_free) float64. Scratch: verts (n, 2) float64,
-    tex (D,) float32, coef (m,) float64, e (D,) float64, delta (n_free,) float64.
+    tex (D,) float32, coef (m,) float64, e (D,) float64, delta (n_free,) float64. ``fill``: as ``_residual``'s.
     Returns |e|^2 / D of the last stage's residual (before its update).
     """
     q_new = np.empty_like(q)
@@ -392,7 +398,8 @@ def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, Q, Qs, b, mea
     prod = np.empty(n_free)
     err = 0.0
     for s in range(Q.shape[0]):
-        err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        err = _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
+                        fill)
         for p in range(D):
             e32[p] = e[p]
         _qmatvec(Q[s], Qs[s], e32, acc, prod)
@@ -414,6 +421,7 @@ def _residual_batch(image, scale, shift, shape3d, basis, Q, mean, app, pix_vid, 
     coef = np.empty(app.shape[1])
     e = np.empty(D)
     for i in range(Q.shape[0]):
-        _residual(image, scale, shift, shape3d, basis, Q[i], mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e)
+        _residual(image, scale, shift, shape3d, basis, Q[i], mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
+                  False)
         for p in range(D):
             E[i, p] = e[p]

@@ -348,7 +348,10 @@ def texture_triangles(sm: ShapeModel, config: TrainConfig) -> np.ndarray:
 
 
 class _Fixed:
-    """A ``Levels`` stand-in holding one feature image, whatever factor is asked for."""
+    """A ``Levels`` stand-in holding one feature image, whatever factor is asked for (read as training reads
+    its photos: ``edge`` off)."""
+
+    edge = False
 
     def __init__(self, image: np.ndarray):
         self.image = image
@@ -358,7 +361,10 @@ class _Fixed:
 
 
 class _ByFactor:
-    """A ``Levels`` stand-in serving one image's precomputed feature images by resampling factor."""
+    """A ``Levels`` stand-in serving one image's precomputed feature images by resampling factor (``edge`` off, as
+    ``_Fixed``)."""
+
+    edge = False
 
     def __init__(self, images: dict):
         self.images = images

@@ -197,6 +197,10 @@ def test_residual_matches_reference(mode, n_ch):
                     np.empty(D, np.float32), np.empty(3), e)
     e_ref, err_ref = _slow_residual(image, shape3d, basis, q, mean.astype(float), app.astype(float), vid, bary, mode)
     assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
+    e2 = np.empty(D)
+    _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, np.empty((4, 2)), np.empty(D, np.float32),
+              np.empty(3), e2, False)
+    assert np.array_equal(e, e2)  # the toy face lies inside the image: nothing to fill, with or without
     E = np.empty((2, D), np.float32)
     _residual_batch(image, 1.0, 0.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
     assert np.abs(E - e_ref).max() < 1e-4  # the batch is the same residual, row by row
@@ -218,6 +222,10 @@ def test_residual_leaves_out_the_samples_outside_the_image(mode, n_ch):
     out = np.tile(pos[:, 0] < 0, n_ch)
     assert 0.2 < out.mean() < 0.5  # the premise: a good part of the texture lies outside
     assert np.array_equal(tex[out], mean[out])  # those pixels read as the mean texture
+    e_border = np.empty(D)
+    _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, verts, tex, np.empty(3), e_border, False)
+    assert not np.array_equal(tex[out], mean[out]) and np.abs(e_border - e).max() > 0.1  # ``fill`` off: the border
+    _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, verts, tex, np.empty(3), e, True)
     e_ref, err_ref = _slow_residual(image, shape3d, basis, q, mean.astype(float), app.astype(float), vid, bary, mode)
     assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
 

@@ -97,12 +97,13 @@ def test_cascade_recovers_known_displacements_on_synthetic_faces():
         k = last.n_stages - 1
         gone = outside(g, 1.0, cut, last.halves[k], similarity_to(last.ref, cut)[0])
         assert 0 < gone.sum() < 68  # the premise: some patches wholly outside, most not
-        z_cut = last.read(g, 1.0, cut).reshape(68, -1)
+        z_cut = last.read(g, 1.0, cut, blank=True).reshape(68, -1)
         assert not z_cut[gone].any() and np.abs(z_cut[~gone]).sum(1).min() > 0
-        _, z_run, _ = last.run(g, 1.0, cut, first=k, repeats=0)
+        _, z_run, _ = last.run(g, 1.0, cut, first=k, repeats=0, blank=True)
         assert np.abs(z_run.reshape(68, -1) - z_cut).max() < 5e-4 * max(1.0, np.abs(z_cut).max())
-        (x, _, _), (x_slow, _, _) = cascade.run(g, 1.0, cut), cascade.run_slow(g, 1.0, cut)
+        (x, _, _), (x_slow, _, _) = cascade.run(g, 1.0, cut, blank=True), cascade.run_slow(g, 1.0, cut, blank=True)
         assert np.abs(x - x_slow).max() < 1e-3  # px
+        assert np.abs(x - cascade.run(g, 1.0, cut)[0]).max() > 1e-3  # and without blanking the points go elsewhere
 
 
 def test_made_starts_carry_library_errors_in_the_face_frame():

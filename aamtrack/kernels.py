@@ -88,7 +88,7 @@ def texture(image, scale: float, shift: float, shape3d, basis, q, pix_vid, pix_b
 
 
 def residual(image, scale: float, shift: float, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode: int,
-             verts, tex, coef, e, *, fill: bool = True) -> float:
+             verts, tex, coef, e, *, fill: bool = False) -> float:
     """e (D,) float64 <- the projected residual at q; returns |e|^2 / D. verts, tex, coef: scratch. ``fill``:
     samples outside the image read as the mean texture (``_kernels.warp._residual``)."""
     shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)
@@ -109,7 +109,7 @@ def residual_batch(image, scale: float, shift: float, shape3d, basis, Q, mean, a
 
 
 def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, quantised, scales, b, mean, app,
-            pix_vid, pix_bary, mode: int, verts, tex, coef, e, delta, *, fill: bool = True) -> float:
+            pix_vid, pix_bary, mode: int, verts, tex, coef, e, delta, *, fill: bool = False) -> float:
     """The learned update cascade on one couple, q (n_q,) float64 updated in place (``_kernels.warp._cascade``),
     its matrices as ``Couple.quantised`` gives them (quantised (n_stages, D, n_free) int16, scales (n_stages,
     n_free) float32). Returns the last stage's mean squared residual."""
@@ -125,7 +125,7 @@ def cascade(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, 
 
 def search(image, scale: float, shift: float, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app,
            pix_vid, pix_bary, mode: int, max_iter: int, tol: float, n_steps: int, delta_tol, *,
-           fill: bool = True) -> tuple[int, float]:
+           fill: bool = False) -> tuple[int, float]:
     """The Jacobian active search on one couple, q updated in place (``_kernels.warp._search``).
     Returns (iterations, final cost)."""
     shape3d, basis, pix_vid, pix_bary = _model(shape3d, basis, pix_vid, pix_bary)

@@ -189,7 +189,7 @@ def _fill_outside(image, verts, scale, shift, pix_vid, pix_bary, mean, tex):
 
 @numba.njit(**NJIT)
 def _residual(image, scale, shift, shape3d, basis, q, mean, app, pix_vid, pix_bary, mode, verts, tex, coef, e,
-              fill=True):
+              fill=False):
     """e = P (T(q) - I_m) with T(q) the finished texture (``_texture``) and P the projection off the appearance
     basis ``app`` (D, m) float32 (orthonormal columns; m may be 0), D = C * N. Returns |e|^2 / D. With ``fill``,
     texture pixels whose sample falls outside the image take the mean texture's value (``_fill_outside``): where
@@ -277,7 +277,7 @@ def _prior_cost(q, free, prior):
 
 @numba.njit(**NJIT)
 def _search(image, scale, shift, shape3d, basis, q, free, lo, hi, U, prior_step, prior, mean, app, pix_vid, pix_bary,
-            mode, max_iter, tol, n_steps, delta_tol, fill=True):
+            mode, max_iter, tol, n_steps, delta_tol, fill=False):
     """Active search on one couple: repeat warp, residual, delta = U e - prior_step q[free], try the steps
     1, 1/2, ... (``n_steps`` of them) of delta and keep the first that lowers the cost; stop when none does,
     when the cost falls by less than ``tol`` (relative), or after ``max_iter`` iterations. Updates q in place.
@@ -380,7 +380,7 @@ def _accumulate_gradient(image, scale, shift, shape3d, basis, q0, free, steps, m
 
 @numba.njit(**NJIT)
 def _cascade(image, scale, shift, shape3d, basis, q, free, lo, hi, Q, Qs, b, mean, app, pix_vid, pix_bary, mode,
-             verts, tex, coef, e, delta, fill=True):
+             verts, tex, coef, e, delta, fill=False):
     """Learned update cascade on one couple (supervised descent): for each stage s, e = residual(q),
     delta = R[s] e + b[s], q <- q composed with delta (``_compose``, clipped to [lo, hi]). Updates q in place.
 

@@ -199,7 +199,7 @@ def test_residual_matches_reference(mode, n_ch):
     assert np.abs(e - e_ref).max() < 1e-4 and err == pytest.approx(err_ref, rel=1e-4)  # float32 textures
     e2 = np.empty(D)
     _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, np.empty((4, 2)), np.empty(D, np.float32),
-              np.empty(3), e2, False)
+              np.empty(3), e2, True)
     assert np.array_equal(e, e2)  # the toy face lies inside the image: nothing to fill, with or without
     E = np.empty((2, D), np.float32)
     _residual_batch(image, 1.0, 0.0, shape3d, basis, np.stack([q, q]), mean, app, vid, bary, mode, E)
@@ -217,7 +217,7 @@ def test_residual_leaves_out_the_samples_outside_the_image(mode, n_ch):
     mean = rng.normal(0, 1, D).astype(np.float32)
     app = np.linalg.qr(rng.normal(0, 1, (D, 3)))[0].astype(np.float32)
     verts, tex, e = np.empty((4, 2)), np.empty(D, np.float32), np.empty(D)
-    err = _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, verts, tex, np.empty(3), e)
+    err = _residual(image, 1.0, 0.0, shape3d, basis, q, mean, app, vid, bary, mode, verts, tex, np.empty(3), e, True)
     pos = np.einsum("pk,pkd->pd", bary.astype(float), verts[vid])
     out = np.tile(pos[:, 0] < 0, n_ch)
     assert 0.2 < out.mean() < 0.5  # the premise: a good part of the texture lies outside

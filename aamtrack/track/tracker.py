@@ -413,7 +413,9 @@ class Tracker:
         x1, y1 = int(min(W, np.ceil(hi[0] + m))), int(min(H, np.ceil(hi[1] + m)))
         if x1 - x0 < 8 or y1 - y0 < 8:
             x0, y0, x1, y1 = 0, 0, W, H
-        edge = x0 == 0 or y0 == 0 or x1 == W or y1 == H  # a crop reaching the frame's edge: past it is missing
+        # a crop reaching the frame's edge: past it is missing (``Levels.edge``); approximate where it reaches one
+        # edge only: past its other sides, inside the frame, is read as missing too (close_up, still_shots moved)
+        edge = x0 == 0 or y0 == 0 or x1 == W or y1 == H
         return self.searcher.levels(crop_gray32(image, x0, y0, x1, y1), edge=edge), np.array([x0, y0], float)
 
     def fit_roi(self, image: np.ndarray, starts: list, shape_params=None, *, first: int = 0, crop=None,

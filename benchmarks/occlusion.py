@@ -78,10 +78,12 @@ def occluder_mask(kind: str, points: np.ndarray, shape: tuple) -> np.ndarray:
     return mask.astype(bool)
 
 
-def past_the_edge(image: np.ndarray, points: np.ndarray, share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def past_the_edge(image: np.ndarray, points: np.ndarray, share: float,
+                  slide: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(image moved left so ``share`` of the face's width (points (68, 2), package pixels) lies past the frame's left
-    edge, its right edge replicated; the points moved with it; visible (68,) bool: the points still inside)."""
-    dx = -(float(np.min(points[:, 0]) - 1.0) + share * float(np.ptp(points[:, 0])))
+    edge, its right edge replicated, or ``slide`` (0..1) of that move; the points moved with it; visible (68,)
+    bool: the points still inside)."""
+    dx = -slide * (float(np.min(points[:, 0]) - 1.0) + share * float(np.ptp(points[:, 0])))
     h, w = image.shape[:2]
     out = cv2.warpAffine(image, np.array([[1.0, 0.0, dx], [0.0, 1.0, 0.0]]), (w, h), flags=cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_REPLICATE)
@@ -118,10 +120,8 @@ def occluded_video(frames: list, ref: np.ndarray, kind: str) -> tuple[list, np.n
     out = list(frames)
     for i in np.flatnonzero(covered):
         if kind == "edge":
-            u = np.sin(np.pi * ((i - START) % EVERY + 0.5) / SPAN)  # 0 -> 1 -> 0 over the stretch
-            left = float(np.min(ref[i, :, 0]) - 1.0)
-            width = float(np.ptp(ref[i, :, 0]))
-            out[i], moved[i], visible[i] = past_the_edge(frames[i], ref[i], u * EDGE_SHARE - (1.0 - u) * left / width)
+            slide = np.sin(np.pi * ((i - START) % EVERY + 0.5) / SPAN)  # 0 -> 1 -> 0 over the stretch
+            out[i], moved[i], visible[i] = past_the_edge(frames[i], ref[i], EDGE_SHARE, slide)
         else:
             out[i], visible[i] = occluded(frames[i], ref[i], kind)
     return out, covered, visible, moved

@@ -62,8 +62,9 @@ class TrackerConfig:
     move) was lost for a frame each time: the robustness suite's shake (cap12 moved by jumps of up to 0.35 eye
     distances a frame, 3D): 85.1% of its frames tracked -> 100%; frames a tracked search keeps cost nothing more.
     min_inside: share of the 68 landmarks that must lie inside the frame. A face partly out of the frame is fitted
-    on what the frame shows (the search's texture pixels and the landmark cascade's patches outside it count as
-    missing: ``_kernels.warp._fill_outside``, ``_kernels.patches._blank_outside``), so half a face can be kept
+    on what the frame shows (where its crop reaches the frame's edge, ``Tracker.crop``, the search's texture pixels
+    and the landmark cascade's patches outside it count as missing: ``_kernels.warp._fill_outside``,
+    ``_kernels.patches._blank_outside``), so half a face can be kept
     (0.7 before those; see benchmarks/README.md, "robustness.py", partly out of the frame).
     max_turn, max_rescale: a frame whose fit turned more than ``max_turn`` radians about any axis or rescaled
     by more than ``max_rescale`` (log) since the previous frame is taken as lost: no head does that in 1/25 s,

@@ -241,6 +241,14 @@ class TrackerConfig:
     start walks off where the landmark start holds it (the robustness suite's blur video, 2D: NME 0.0530 ->
     0.0399; with "landmarks" on every frame 0.0399 too, but clean 0.0233 -> 0.0272); its other rows, still_shots
     and cap12 are unchanged (no soft frames). A start given explicitly holds for every fit.
+    start_expression: a 3D "landmarks" start (``Tracker.landmark_start``) of a clear face's fit takes this share
+    of the landmark fit's animation units and the rest from the search's own: the landmark fit reads the
+    expression from the cascade's final points, the next search and cascade start from it, and on a face the
+    model fits less well that loop feeds on itself (a bearded man in ``still_shots.py``: NME 0.059 at the
+    detection, the mouth and jaw walking down into the beard frame by frame, 0.12 from the fifth frame on at
+    confidence 0.99). Half of each breaks the loop there; dim faces' starts (whose points follow the noise) are
+    left as they were (with them too: hard2 0.0359 -> 0.0370). 1.0: the landmark fit's alone (before
+    2026-12-02).
     cut_below: a frame whose thumbnail (``imaging.thumbnail``, 32x24 grey) correlates with the previous frame's
     below this is a new shot: the track restarts with a detection rather than searching from a face that is no
     longer there (0 never does). Consecutive frames of cap12 correlate at 0.90 or more (0.98 at the 1st
@@ -354,6 +362,7 @@ class TrackerConfig:
     smooth_dim: float = 0.015
     landmark_stages_tracked: int = 0
     tracked_start: str = "auto"
+    start_expression: float = 0.5
     cut_below: float = 0.6
     sigma_per_shot: bool = True
     landmark_pass: bool = True
@@ -372,6 +381,8 @@ class TrackerConfig:
     def __post_init__(self):
         if self.tracked_start not in TRACKED_STARTS:
             raise ValueError(f"tracked_start {self.tracked_start!r}: one of {', '.join(TRACKED_STARTS)}")
+        if not 0.0 <= self.start_expression <= 1.0:
+            raise ValueError(f"start_expression {self.start_expression!r}: a share between 0 and 1")
 
 
 def _summed(a: dict, b: dict) -> dict:
@@ -637,7 +648,12 @@ class Tracker:
         (pose check, video, geodesic median / p95 7.33 / 16.30 degrees onto the final points, 5.88 / 13.36 onto
         these, 2026-11-26), while the 2D landmarks gain from the term."""
         pts = res.landmarks if res.landmark_prior is None else res.landmarks - res.landmark_prior
-        return self._landmark_fitter.refit(res.p, pts)
+        p = self._landmark_fitter.refit(res.p, pts)
+        a = self.config.start_expression
+        if self.model.shape.kind == "3d" and a != 1.0 and not res.dim:  # (``TrackerConfig.start_expression``)
+            anim = slice(N_POSE, self.model.shape.n_q)
+            p[anim] = a * p[anim] + (1.0 - a) * res.p[anim]
+        return p
 
     def realign(self, res: FitResult) -> np.ndarray:
         """res.p with its in-plane pose (roll, scale, translation) moved by the least-squares similarity that takes

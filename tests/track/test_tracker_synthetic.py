@@ -466,9 +466,9 @@ def test_tracking_a_still_face_keeps_the_detection_s_accuracy():
 def test_landmark_start_fits_the_final_points(kind, synth_model, synth_model3d):
     """``Tracker.landmark_start``: one Gauss-Newton step of the landmark fit from a search vector whose pose and
     coefficients are off takes the model's 68 points onto the final ones it is given (made by a known vector),
-    the shape units held."""
+    the shape units held (the landmark fit's animation units alone: ``start_expression`` 1)."""
     model = synth_model if kind == "2d" else synth_model3d[0]
-    tracker = Tracker(model)
+    tracker = Tracker(model, config=TrackerConfig(start_expression=1.0))
     sm = model.shape
     truth = tracker.initial_p((60.0, 40.0, 150.0, 150.0))
     rng = np.random.default_rng(11)
@@ -496,6 +496,32 @@ def test_landmark_start_fits_the_final_points(kind, synth_model, synth_model3d):
     assert after < 0.1 * before  # one step takes nine tenths of the way at least
     assert after < 1.0  # px (3D: 0.49; rotation is not linear, one step does not finish it)
     assert np.array_equal(start[n_q:], off[n_q:])  # the person's shape units are held
+
+
+def test_landmark_start_takes_part_of_the_expression_from_the_search(synth_model3d):
+    """``TrackerConfig.start_expression``: a 3D landmark start's animation units are that share of the landmark
+    fit's and the rest the search's own (the loop of cascade -> start -> cascade walking off faces is damped);
+    its pose and the shape units are the landmark fit's alone; a dim face's fit starts from the landmark fit as
+    before."""
+    model = synth_model3d[0]
+    sm = model.shape
+    n_q = sm.n_q
+    full = Tracker(model, config=TrackerConfig(start_expression=1.0))
+    half = Tracker(model, config=TrackerConfig(start_expression=0.5))
+    truth = full.initial_p((60.0, 40.0, 150.0, 150.0))
+    lo, hi = sm.bounds()
+    truth[6:n_q] = np.clip(0.3 * sm.spreads()[6:n_q], lo[6:], hi[6:])
+    final = sm.landmark_map @ full.searcher.project(truth)
+    off = truth.copy()
+    off[6:n_q] = lo[6:] + 0.05 * (hi[6:] - lo[6:])  # the search's expression: far from the points'
+    res = FitResult(p=off, landmarks=final, vertices=full.searcher.project(off), residual=0.0, iterations=(),
+                    stats=np.zeros(4), confidence=1.0)
+    a, b = full.landmark_start(res), half.landmark_start(res)
+    assert np.abs(a[6:n_q] - off[6:n_q]).max() > 0.1 * np.abs(hi[6:] - lo[6:]).max()  # the fit moved them
+    assert np.allclose(b[6:n_q], 0.5 * (a[6:n_q] + off[6:n_q]), rtol=0, atol=1e-12)  # half of each
+    assert np.array_equal(b[:6], a[:6]) and np.array_equal(b[n_q:], a[n_q:])  # pose, shape: the fit's
+    dim = replace(res, dim=True)
+    assert np.array_equal(half.landmark_start(dim), full.landmark_start(dim))  # dim: as before
 
 
 def test_thumbnail_is_a_normalised_grey_miniature():

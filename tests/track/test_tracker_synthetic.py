@@ -678,9 +678,10 @@ def test_a_dim_tracked_frame_is_searched_again_with_the_middle_couple_whatever_i
                               ("clear", replace(model3d, dim_validator=own, dim_below=0.0), None),
                               ("both", replace(model3d, dim_validator=own, dim_below=0.0), 1)):
         # (sigma_frames=0: the shape units searched in every frame, so no estimate, which a dim face's fit makes
-        # otherwise than a clear one's, sets the tracked frame's start)
+        # otherwise than a clear one's, sets the tracked frame's start; start_expression=1: nor the blend of the
+        # animation units, which a clear face's start takes and a dim one's not)
         tracker = Spy(model, config=TrackerConfig(coarser_below=0.0, cut_below=0.0, skip_coarse_tracked=skip,
-                                                  sigma_frames=0))
+                                                  sigma_frames=0, start_expression=1.0))
         tracker.firsts = []
         runs[name] = list(tracker.track(synth_frame(i, f) for i, f in enumerate(frames)))
         firsts[name] = tracker.firsts

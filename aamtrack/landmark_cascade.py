@@ -26,6 +26,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
+from .imaging import level_shift
 from .kernels import (face_fine_noise, face_noise_and_deviation, face_sharpness, landmark_cascade,
                       landmark_descriptors, landmark_training_rows)
 from .mesh.landmarks import similarity_fit
@@ -71,7 +72,7 @@ def descriptors(spec: DescriptorSpec, image: np.ndarray, scale: float, pts: np.n
     if out is None:
         out = np.empty((len(pts), spec.size), np.float32)
     step = 2.0 * half / (spec.side + 1)
-    landmark_descriptors(image, scale, 0.5 * scale - 0.5, pts, step * M, cells=spec.cells, cell=spec.cell,
+    landmark_descriptors(image, scale, level_shift(scale), pts, step * M, cells=spec.cells, cell=spec.cell,
                          bins=spec.bins, floor=spec.patch_floor / gain, out=out)
     return out.reshape(-1)
 
@@ -87,7 +88,7 @@ def training_rows(spec: DescriptorSpec, image: np.ndarray, scale: float, starts:
     Y = np.empty((m, 2 * len(ref)))
     frames = np.empty((m, 2, 2))
     S = np.empty((m, 2 * len(ref)), np.float32) if with_shape else None
-    landmark_training_rows(image, scale, 0.5 * scale - 0.5, starts, truth, ref, half, cells=spec.cells,
+    landmark_training_rows(image, scale, level_shift(scale), starts, truth, ref, half, cells=spec.cells,
                            cell=spec.cell, bins=spec.bins, floor=spec.patch_floor, F=F, Y=Y, frames=frames, S=S)
     return F.reshape(m, -1), Y, frames, S
 
@@ -270,7 +271,7 @@ def outside(image: np.ndarray, scale: float, pts: np.ndarray, half: float, M: np
     """(n_points,) bool: which points pts (n, 2) (frame pixels) have their patch (half side ``half`` in the face
     frame M, ``similarity_to``) wholly outside ``image``, the frame resampled by ``scale``: their projected
     descriptors are set to 0, the stage's mean, as the compiled cascade does (``_kernels.patches._blank_outside``)."""
-    x = scale * np.asarray(pts, np.float64) + (0.5 * scale - 0.5)
+    x = scale * np.asarray(pts, np.float64) + level_shift(scale)
     reach = half * float(np.hypot(M[0, 0], M[1, 0])) * scale
     H, W = image.shape[:2]
     return (x[:, 0] < -reach) | (x[:, 1] < -reach) | (x[:, 0] > W - 1 + reach) | (x[:, 1] > H - 1 + reach)
@@ -364,7 +365,7 @@ class LandmarkCascade:
         k = slice(first, None)
         prior = np.empty_like(x)
         Q, s, Ut = self.quantised
-        z = landmark_cascade(image, scale, 0.5 * scale - 0.5, x, self.ref, np.asarray(self.halves[k], np.float64),
+        z = landmark_cascade(image, scale, level_shift(scale), x, self.ref, np.asarray(self.halves[k], np.float64),
                              self.basis_mean[k], self.basis[k], Q[k], s[k], Ut[k], self.biases[k],
                              self.shape_regressors[k], max(0, self.shape_from - first), cells=sp.cells,
                              cell=sp.cell, bins=sp.bins, floor=sp.patch_floor / gain,

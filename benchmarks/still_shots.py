@@ -64,10 +64,9 @@ def reflected_copies(points: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.array(out)
 
 
-def build_shots(data: Path, n_shots: int, n_frames: int, seed: int = 3, *,
-                copies: bool = False) -> tuple:
-    """(frames BGR, references (n, 68, 2), shot index per frame), and with ``copies`` the reflected copies'
-    points per frame (n, 8, 68, 2) (``reflected_copies``)."""
+def build_shots(data: Path, n_shots: int, n_frames: int, seed: int = 3) -> tuple:
+    """(frames BGR, references (n, 68, 2), shot index per frame, the reflected copies' points per frame (n, 8, 68,
+    2): ``reflected_copies``)."""
     pairs = sorted(find_pairs(data), key=lambda t: t[0].name)
     order = np.random.default_rng(seed).permutation(len(pairs))
     frames, refs, shot, mirrored = [], [], [], []
@@ -95,23 +94,18 @@ def build_shots(data: Path, n_shots: int, n_frames: int, seed: int = 3, *,
             frames.append(cv2.warpAffine(img, A, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT))
             refs.append(affine_points(P, A))
             shot.append(k)
-            if copies:
-                mirrored.append(affine_points(reflected_copies(P, (img.shape[1], img.shape[0])), A))
+            mirrored.append(affine_points(reflected_copies(P, (img.shape[1], img.shape[0])), A))
         k += 1
-    if copies:
-        return frames, np.array(refs), np.array(shot), np.array(mirrored)
-    return frames, np.array(refs), np.array(shot)
+    return frames, np.array(refs), np.array(shot), np.array(mirrored)
 
 
-def evaluate(model, frames, refs, shot, config: TrackerConfig, copies: np.ndarray | None = None) -> dict:
+def evaluate(model, frames, refs, shot, copies, config: TrackerConfig) -> dict:
     results = list(Tracker(model, config=config).track(Frame(i, i / 25.0, f) for i, f in enumerate(frames)))
     ok = np.array([r.success for r in results])
     err = np.array([nme(r.landmarks, refs[i]) if r.success else np.inf for i, r in enumerate(results)])
     good = err <= 0.08
-    on_copy = 0
-    if copies is not None:  # tracked frames above 0.10 whose fit lies within 0.10 of a reflected copy of the face
-        on_copy = sum(min(nme(results[i].landmarks, c) for c in copies[i]) <= 0.10
-                      for i in np.flatnonzero(ok & (err > 0.10)))
+    # tracked frames above 0.10 whose fit lies within 0.10 of a reflected copy of the face
+    on_copy = sum(min(nme(results[i].landmarks, c) for c in copies[i]) <= 0.10 for i in np.flatnonzero(ok & (err > 0.10)))
     shot_means = [float(err[(shot == k) & ok].mean()) for k in range(shot.max() + 1) if ((shot == k) & ok).any()]
     return {"frames": len(frames), "tracked": int(ok.sum()), "share_within_0.08": float(good.mean()),
             "nme_mean_within_0.08": float(err[good].mean()) if good.any() else float("nan"),
@@ -136,7 +130,7 @@ def main() -> int:
     ap.add_argument("--config", action="append", default=[], help="TrackerConfig changes, e.g. cut_below=0")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
-    frames, refs, shot, copies = build_shots(args.data, args.shots, args.frames, copies=True)
+    frames, refs, shot, copies = build_shots(args.data, args.shots, args.frames)
     print(f"{machine_name()}; {shot.max() + 1} shots, {len(frames)} frames")
     print("| model | tracker | tracked | within 0.08 | NME mean (within) | tracked > 0.10 | of those on a reflected copy "
           "| median shot mean |")
@@ -146,7 +140,7 @@ def main() -> int:
         model = load_model(path)
         for text in ["default"] + args.config:
             cfg = TrackerConfig() if text == "default" else replace(TrackerConfig(), **parse_config(text))
-            r = evaluate(model, frames, refs, shot, cfg, copies)
+            r = evaluate(model, frames, refs, shot, copies, cfg)
             rows.append({"model": str(path), "config": text, **r})
             print(f"| {path.name} | {text} | {r['tracked']} / {r['frames']} | {r['share_within_0.08']:.1%} | "
                   f"{r['nme_mean_within_0.08']:.4f} | {r['tracked_above_0.10']} | {r['of_those_on_a_copy']} | "

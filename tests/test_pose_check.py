@@ -11,7 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from conftest import SEED, shared_path  # noqa: E402
-from pose_check import angle_errors, geodesic_deg, rotation  # noqa: E402
+from pose_check import angle_errors, geodesic_deg, rotation, sweep_bins  # noqa: E402
 
 from aamtrack.mesh.render import orient_triangles, posed  # noqa: E402
 from aamtrack.mesh.render import render_mesh as render  # noqa: E402
@@ -287,3 +287,24 @@ def test_the_warped_texture_puts_each_labelled_point_on_its_landmark():
                 assert max(errors) < within, (pose, np.round(errors, 2))  # px
             else:
                 assert min(errors) > 2.5, (pose, np.round(errors, 2))  # px: the labels' displacement, turned
+
+
+def test_sweep_bins_group_frames_by_turn_and_count_the_confident_wrong_ones():
+    """The yaw sweep's table (``pose_check.sweep_bins``) on hand-made frames: grouped by |yaw| either way, lost
+    frames counted but kept out of the means, and a tracked frame off by more than the bound counted wrong."""
+    def row(yaw, error=None, estimate=None, confidence=0.0):
+        return {"yaw": yaw, "success": error is not None, "error": error, "yaw_estimate": estimate,
+                "confidence": confidence}
+
+    rows = [row(3.0, 0.03, 5.0, 1.0), row(-10.0, 0.05, -4.0, 0.8),  # 0-15: both tracked, 2 and 6 degrees off
+            row(20.0, 0.04, 18.0, 1.0), row(-29.9, None),            # 15-30: one lost
+            row(61.0, 0.30, 40.0, 0.9), row(-70.0, 0.10, -50.0, 0.7), row(74.0, None)]  # 60-75
+    bins = sweep_bins(rows, width=15, wrong=0.10)
+    assert [(b["from"], b["to"], b["frames"], b["tracked"]) for b in bins] == [(0, 15, 2, 2), (15, 30, 2, 1),
+                                                                               (60, 75, 3, 2)]
+    assert bins[0]["error_mean"] == pytest.approx(0.04) and bins[0]["wrong"] == 0
+    assert bins[0]["confidence_mean"] == pytest.approx(0.9) and bins[0]["yaw_error_median"] == pytest.approx(4.0)
+    assert bins[1]["error_mean"] == pytest.approx(0.04) and bins[1]["yaw_error_median"] == pytest.approx(2.0)
+    assert bins[2]["wrong"] == 1  # 0.30 is wrong; 0.10 is not above the bound
+    assert bins[2]["error_mean"] == pytest.approx(0.20) and bins[2]["yaw_error_median"] == pytest.approx(20.5)
+    assert sweep_bins([row(80.0, None)])[0]["error_mean"] is None  # a bin with nothing tracked has no mean

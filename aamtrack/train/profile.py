@@ -35,6 +35,10 @@ class ProfileSpread:
     max_turn: float = 40.0
 
 
+TURNED_YAW = (60.0, 80.0)  # degrees: ``turned_start``'s turns (either way)
+TURNED_READ = (35.0, 50.0)  # degrees: the yaw its fits start at
+
+
 def _target_angle(src: float, limit: float, max_turn: float, rng: np.random.Generator) -> float:
     lo, hi = max(-limit, src - max_turn), min(limit, src + max_turn)
     return float(rng.uniform(lo, hi)) if hi > lo else float(src)
@@ -85,3 +89,18 @@ def profile_faces(images: list, P: np.ndarray, sm: ShapeModel, share: float, *, 
         pts_out.append(pts)
     n_p = P.shape[1]
     return out, np.array(P_out).reshape(-1, n_p), np.array(pts_out).reshape(-1, 68, 2), pick
+
+
+def turned_start(image: np.ndarray, p: np.ndarray, sm: ShapeModel, rng: np.random.Generator,
+                 triangles: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A face turned past what the model fits, and where a tracker's search of it would start: the face of
+    ``image`` fitted at p drawn at a yaw of ``TURNED_YAW`` degrees either way (its pitch kept), and its true search
+    vector with the yaw read at ``TURNED_READ`` degrees the same way (the 3D model's search stops turning near 45
+    degrees while the head turns on: ``benchmarks/pose_check.py --sweep``). Returns (image, start, the turned
+    face's (68, 2) landmarks). For the landmark validator's hard negatives (``TrainConfig.validator_turned``)."""
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    yaw, read = (sign * np.radians(rng.uniform(*r)) for r in (TURNED_YAW, TURNED_READ))
+    img, q, truth = profile_face(image, p, sm, float(p[0]), yaw, triangles)
+    start = q.copy()
+    start[1] = read
+    return img, start, truth

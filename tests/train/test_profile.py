@@ -8,7 +8,7 @@ import synth3d
 from conftest import SEED
 
 from aamtrack.mesh.render import posed
-from aamtrack.train.profile import ProfileSpread, profile_face, profile_faces
+from aamtrack.train.profile import TURNED_READ, TURNED_YAW, ProfileSpread, profile_face, profile_faces, turned_start
 
 SIZE = 240
 # eye corners, mouth corners, chin, brow ends (not the nose ridge: at a turn it hides part of its own mark, which
@@ -67,8 +67,41 @@ def test_profile_faces_share_and_spread():
     assert np.abs(P_new[:, 1] - P[src, 1]).max() > np.radians(5)  # they do turn
 
 
+def test_turned_starts_turn_the_face_past_the_model_and_read_a_smaller_turn_the_same_way():
+    """``turned_start`` (the landmark validator's turned negatives): the face drawn at 60-80 degrees of yaw either
+    way, its points the model's at that yaw with everything else the source's, and the start the source's vector
+    but for a yaw of 35-50 degrees the same way."""
+    from scipy.optimize import minimize_scalar
+
+    sm = synth3d.shape_model(synth3d.synthetic_candide())
+    rng = np.random.default_rng(SEED)
+    q = np.zeros(sm.n_q)
+    q[:6] = (0.1, 0.2, 0.05, 130.0, SIZE / 2, SIZE / 2)
+    p = np.r_[q, rng.normal(0, 0.5, sm.n_shape)]
+    src = _marked_source(sm, q, p[sm.n_q:], [int(np.argmax(sm.landmark_map[i])) for i in CENTRAL])
+    signs = set()
+    for _ in range(12):
+        img, start, pts = turned_start(src, p, sm, rng)
+        assert img.shape == src.shape and img.dtype == src.dtype and not np.array_equal(img, src)
+        assert np.flatnonzero(start != p).tolist() == [1]  # only the yaw is not the source's
+        read = np.degrees(start[1])
+        assert TURNED_READ[0] <= abs(read) <= TURNED_READ[1]
+
+        def miss(yaw_deg, start=start, pts=pts):
+            at = start[:sm.n_q].copy()
+            at[1] = np.radians(yaw_deg)
+            return np.abs(sm.landmarks(at, p[sm.n_q:]) - pts).max()
+
+        lo, hi = TURNED_YAW if read > 0 else (-TURNED_YAW[1], -TURNED_YAW[0])
+        best = minimize_scalar(miss, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+        assert best.fun < 1e-3  # the points are the model's at a turn of 60-80 degrees the way the start reads
+        signs.add(np.sign(read))
+    assert signs == {-1.0, 1.0}  # both ways
+
+
 def test_training_with_turned_copies_still_converges():
-    """Profiling is off by default: this keeps its training path (copies joining at a finer couple) exercised."""
+    """Profiling is off by default: this keeps its training path (copies joining at a finer couple) exercised, and
+    the landmark validator's turned negatives' (``TrainConfig.validator_turned``, off by default too)."""
     from conftest import SYNTH_COUPLES
 
     from aamtrack.train.pipeline import TrainConfig, train_model
@@ -77,6 +110,7 @@ def test_training_with_turned_copies_still_converges():
     images, points, _, _ = synth3d.posed_faces(candide, 30, np.random.default_rng(SEED))
     model, _ = train_model(images, points, "3d", candide=candide,
                            config=TrainConfig(couples=SYNTH_COUPLES, map_refine_rounds=1, n_corrective=4,
-                                              profile_share=0.5, profile_from_couple=2))
+                                              profile_share=0.5, profile_from_couple=2, validator_turned=2))
     assert model.config["train_start_nme_median"] > 0.05  # the starts are really off
     assert model.config["train_final_nme_median"] < 0.01  # and the cascade brings them back (faces 130 px wide)
+    assert model.config["validator_turned"] == 2 and model.landmark_validator is not None

@@ -299,6 +299,8 @@ def sweep(model_path: Path, data: Path, *, n_faces: int, amplitude: float, n_fra
     from aamtrack.track.tracker import Tracker
 
     model = load_model(model_path)
+    if model.kind != "3d":  # (its shape has no depth: the renders would not turn, nor the truth's points)
+        raise SystemExit(f"{model_path}: a {model.kind} model; the sweep turns the 3D model's mesh")
     tracker = Tracker(model)
     rng = np.random.default_rng(seed)
     faces = source_faces(model, data, n_faces, band=band, source=source)

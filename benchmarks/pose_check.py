@@ -434,36 +434,35 @@ def main(argv=None) -> int:
         ap.error(f"--band {args.band}: between 0 and 1")
     from aamtrack.errors import AamtrackError
 
-    if args.sweep is not None:
-        if not 0 < args.sweep < 90:
-            ap.error(f"--sweep {args.sweep:g}: degrees between 0 and 90")
-        try:
+    if args.sweep is not None and not 0 < args.sweep < 90:
+        ap.error(f"--sweep {args.sweep:g}: degrees between 0 and 90")
+
+    def say(text):
+        print(text, file=sys.stderr)
+
+    try:
+        if args.sweep is not None:
             report = sweep(args.model, args.data, n_faces=args.faces, amplitude=args.sweep, n_frames=args.frames,
-                           background=args.background, band=args.band, source=args.source,
-                           progress=lambda s: print(s, file=sys.stderr))
-        except AamtrackError as e:
-            print(f"pose_check: {e}", file=sys.stderr)
-            return 2
+                           background=args.background, band=args.band, source=args.source, progress=say)
+        else:
+            report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
+                         drift_frames=args.drift_frames, background=args.background, limit=args.limit,
+                         band=args.band, source=args.source, progress=say)
+    except AamtrackError as e:  # unreadable model or data: one line, no traceback
+        print(f"pose_check: {e}", file=sys.stderr)
+        return 2
+    if args.sweep is not None:
         print(f"model {report['model']}, yaw sweep to +-{report['amplitude']:g} degrees over {report['frames']} "
               f"frames x {len(report['faces'])} faces ({', '.join(report['faces'])}), {report['background']} "
               f"background; error: mean landmark distance to the render's / frontal outer eye-corner distance; "
               f"machine: {report['machine']}\n")
         print(sweep_table(report))
-        if args.json:
-            write_json(args.json, report)
-        return 0
-    try:
-        report = run(args.model, args.data, n_faces=args.faces, grid=args.grid, n_frames=args.frames,
-                     drift_frames=args.drift_frames, background=args.background, limit=args.limit,
-                     band=args.band, source=args.source, progress=lambda s: print(s, file=sys.stderr))
-    except AamtrackError as e:  # unreadable model or data: one line, no traceback
-        print(f"pose_check: {e}", file=sys.stderr)
-        return 2
-    print(f"model {report['model']}, {report['poses']} poses ({report['grid']} grid) x {len(report['faces'])} faces "
-          f"({', '.join(report['faces'])}), {report['background']} background, band {report['band']:g}; "
-          f"machine: {report['machine']}")
-    print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")
-    print(table(report))
+    else:
+        print(f"model {report['model']}, {report['poses']} poses ({report['grid']} grid) x {len(report['faces'])} "
+              f"faces ({', '.join(report['faces'])}), {report['background']} background, band {report['band']:g}; "
+              f"machine: {report['machine']}")
+        print("angle errors in degrees (pitch = rx, yaw = ry, roll = rz; geodesic = angle of R_est^T R_true)\n")
+        print(table(report))
     if args.json:
         write_json(args.json, report)
     return 0

@@ -93,6 +93,10 @@ def from_normalised(points, width: float, height: float) -> np.ndarray:
 IBUG_RIGHT_EYE_OUTER = 36
 IBUG_LEFT_EYE_OUTER = 45
 
+#: iBUG-68 regions (0-based point ranges): where a fit's error lies, e.g. the jaw line against the inner points.
+IBUG_REGIONS = {"jaw": range(0, 17), "brows": range(17, 27), "nose": range(27, 36), "eyes": range(36, 48),
+                "mouth": range(48, 68)}
+
 #: Default CED thresholds: 0 to 0.15 in steps of 0.005 (31 values).
 CED_THRESHOLDS = np.linspace(0.0, 0.15, 31)
 
@@ -164,6 +168,20 @@ def nme(pred, ref, *, left: int = IBUG_RIGHT_EYE_OUTER, right: int = IBUG_LEFT_E
     norm = eye_distance(ref, left=left, right=right)
     with np.errstate(divide="ignore", invalid="ignore"):
         return dist / norm
+
+
+def nme_by_region(pred, ref, regions=None, **kw) -> dict:
+    """:func:`nme` over each region's points alone (default :data:`IBUG_REGIONS`), still normalised by the whole
+    reference's outer eye-corner distance (``left``, ``right`` as :func:`nme`): {region: (...) float64}. The
+    regions' means weighted by their point counts give the 68-point NME."""
+    pred = _points(pred, "pred")
+    ref = _points(ref, "ref")
+    if pred.shape != ref.shape:
+        raise ValueError(f"pred has shape {pred.shape} but ref has shape {ref.shape}")
+    norm = eye_distance(ref, **kw)
+    dist = np.linalg.norm(pred - ref, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {name: dist[..., list(idx)].mean(axis=-1) / norm for name, idx in (regions or IBUG_REGIONS).items()}
 
 
 def ced(errors, thresholds=None) -> np.ndarray:

@@ -3,7 +3,8 @@
 For each test image: the ground-truth fit of the model to the human landmarks (pose, coefficients, and sigma
 for 3D), displaced by 10% of the face width (random direction) and 10 degrees of roll (random sign); then one
 multi-resolution search. Prints mean NME (68 points / outer eye-corner distance) before and after, and the share
-of faces ending below NME 0.08.
+of faces ending below NME 0.08, and the mean NME after by region (``metrics.IBUG_REGIONS``: jaw, brows, nose,
+eyes, mouth, each over its own points, normalised as the whole).
 
     python benchmarks/search_accuracy.py --model models/3d.npz --data ../shared/data/300w/helen_test
 """
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from aamtrack.io.dataset import find_pairs, load_pair
-from aamtrack.metrics import PIXEL_ORIGIN, nme
+from aamtrack.metrics import IBUG_REGIONS, PIXEL_ORIGIN, nme, nme_by_region
 from aamtrack.model import load_model
 from aamtrack.imaging import to_gray32
 from aamtrack.search import Searcher
@@ -41,7 +42,7 @@ def evaluate(model_path: Path, data: Path, *, limit: int | None = None, seed: in
     sm = model.shape
     rng = np.random.default_rng(seed)
     pairs = find_pairs(data)[:limit]
-    before, after, times = [], [], []
+    before, after, times, regions = [], [], [], []
     for img_path, pts_path in pairs:
         img, pts = load_pair(img_path, pts_path)
         pts = pts - PIXEL_ORIGIN  # the search works in OpenCV's pixels (``train_model``); the labels are 1-based
@@ -55,11 +56,13 @@ def evaluate(model_path: Path, data: Path, *, limit: int | None = None, seed: in
         times.append(time.perf_counter() - t)
         before.append(nme(sm.landmarks(q0, gt.shape_params), pts))
         after.append(nme(res.landmarks, pts))
+        regions.append(nme_by_region(res.landmarks, pts))
     before, after = np.array(before), np.array(after)
     return {"model": str(model_path), "kind": model.kind, "images": len(pairs),
             "nme_before_mean": float(before.mean()), "nme_after_mean": float(after.mean()),
             "nme_after_median": float(np.median(after)), "share_below_0.08": float((after < 0.08).mean()),
-            "search_ms_median": 1e3 * float(np.median(times))}
+            "search_ms_median": 1e3 * float(np.median(times)),
+            "nme_after_by_region": {k: float(np.mean([r[k] for r in regions])) for k in IBUG_REGIONS}}
 
 
 def main(argv=None) -> int:
@@ -70,10 +73,13 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     rows = [evaluate(m, args.data, limit=args.limit) for m in args.model]
-    print(f"{'model':<20}{'images':>7}{'NME before':>12}{'NME after':>11}{'median':>9}{'<0.08':>8}{'ms':>8}")
+    print(f"{'model':<20}{'images':>7}{'NME before':>12}{'NME after':>11}{'median':>9}{'<0.08':>8}{'ms':>8}"
+          + "".join(f"{k:>8}" for k in IBUG_REGIONS))
     for r in rows:
         print(f"{Path(r['model']).name:<20}{r['images']:>7}{r['nme_before_mean']:>12.4f}{r['nme_after_mean']:>11.4f}"
-              f"{r['nme_after_median']:>9.4f}{100 * r['share_below_0.08']:>7.1f}%{r['search_ms_median']:>8.2f}")
+              f"{r['nme_after_median']:>9.4f}{100 * r['share_below_0.08']:>7.1f}%{r['search_ms_median']:>8.2f}"
+              + "".join(f"{r['nme_after_by_region'][k]:>8.4f}" for k in IBUG_REGIONS))
+    print("(the regions' columns: NME after over each region's points, normalised as the whole)")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=2))
     return 0

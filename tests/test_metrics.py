@@ -5,6 +5,7 @@ import pytest
 
 from aamtrack.metrics import (
     CED_THRESHOLDS,
+    IBUG_REGIONS,
     MEDIAPIPE_SUBSET,
     MEDIAPIPE_TO_IBUG,
     PIXEL_ORIGIN,
@@ -14,6 +15,7 @@ from aamtrack.metrics import (
     jitter,
     mediapipe_to_ibug,
     nme,
+    nme_by_region,
     nme_subset,
     still_frames,
 )
@@ -160,6 +162,25 @@ def test_mediapipe_to_ibug_picks_the_mapped_points():
     assert mediapipe_to_ibug(points468).shape == (2, len(MEDIAPIPE_SUBSET), 2)
     with pytest.raises(ValueError, match="no MediaPipe counterpart"):
         mediapipe_to_ibug(points468, [17])
+
+
+def test_nme_by_region_hand_example_and_the_regions_make_up_the_whole():
+    ref = _face68(eye_gap=10.0)
+    pred = ref.copy()
+    pred[8] += (0.0, 3.4)  # the chin 3.4 px off: jaw NME 3.4 / 17 / 10 = 0.02, every other region 0
+    pred[[48, 54]] += (1.0, 0.0)  # both mouth corners 1 px: mouth 2 / 20 / 10 = 0.01
+    got = nme_by_region(pred, ref)
+    assert set(got) == {"jaw", "brows", "nose", "eyes", "mouth"}
+    assert got["jaw"] == pytest.approx(0.02) and got["mouth"] == pytest.approx(0.01)
+    assert got["brows"] == got["nose"] == got["eyes"] == 0.0
+    assert sorted(i for r in IBUG_REGIONS.values() for i in r) == list(range(68))  # each point once
+    rng = np.random.default_rng(SEED)
+    batch_pred = ref + rng.normal(0, 2.0, (5, 68, 2))
+    parts = nme_by_region(batch_pred, np.broadcast_to(ref, (5, 68, 2)))
+    whole = sum(len(IBUG_REGIONS[k]) * v for k, v in parts.items()) / 68
+    assert np.allclose(whole, nme(batch_pred, np.broadcast_to(ref, (5, 68, 2))))  # the regions make up the NME
+    with pytest.raises(ValueError, match="shape"):
+        nme_by_region(pred[:60], ref)
 
 
 def test_nme_subset_hand_example():

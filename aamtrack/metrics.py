@@ -160,26 +160,26 @@ def nme(pred, ref, *, left: int = IBUG_RIGHT_EYE_OUTER, right: int = IBUG_LEFT_E
         Mean over the points of ``|pred - ref|``, divided by ``|ref[right] - ref[left]|``; NaN where any
         coordinate of ``pred`` (or ``ref``) is NaN.
     """
+    dist, norm = _distances(pred, ref, left=left, right=right)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return dist.mean(axis=-1) / norm
+
+
+def _distances(pred, ref, **kw) -> tuple[np.ndarray, np.ndarray]:
+    """(|pred - ref| per point (..., n_points), the reference's normalising distance (...)) of two point sets of
+    one shape: :func:`nme`'s and :func:`nme_by_region`'s checks and parts."""
     pred = _points(pred, "pred")
     ref = _points(ref, "ref")
     if pred.shape != ref.shape:
         raise ValueError(f"pred has shape {pred.shape} but ref has shape {ref.shape}")
-    dist = np.linalg.norm(pred - ref, axis=-1).mean(axis=-1)
-    norm = eye_distance(ref, left=left, right=right)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return dist / norm
+    return np.linalg.norm(pred - ref, axis=-1), eye_distance(ref, **kw)
 
 
 def nme_by_region(pred, ref, regions=None, **kw) -> dict:
     """:func:`nme` over each region's points alone (default :data:`IBUG_REGIONS`), still normalised by the whole
     reference's outer eye-corner distance (``left``, ``right`` as :func:`nme`): {region: (...) float64}. The
     regions' means weighted by their point counts give the 68-point NME."""
-    pred = _points(pred, "pred")
-    ref = _points(ref, "ref")
-    if pred.shape != ref.shape:
-        raise ValueError(f"pred has shape {pred.shape} but ref has shape {ref.shape}")
-    norm = eye_distance(ref, **kw)
-    dist = np.linalg.norm(pred - ref, axis=-1)
+    dist, norm = _distances(pred, ref, **kw)
     with np.errstate(divide="ignore", invalid="ignore"):
         return {name: dist[..., list(idx)].mean(axis=-1) / norm for name, idx in (regions or IBUG_REGIONS).items()}
 

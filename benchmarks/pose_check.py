@@ -151,7 +151,8 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
     frontal (|rx|, |ry|, |rz| <= max_angle_deg) and close to the human labels (NME <= max_nme). The texture is
     taken at ``source`` (module docstring): "warped", the model's landmark fit (pose, coefficients, shape units)
     to the photo's human labels with the photo moved so the labels fall on the fitted landmarks; "labels", that
-    fit alone; "search", the search's own fit (the check before the twenty-ninth session, 2026-11-28)."""
+    fit alone; "search", the search's own fit (the check before the twenty-ninth session, 2026-11-28). None fitted
+    so: one line (SystemExit), for the grid and the sweep alike."""
     from aamtrack.io.dataset import find_pairs, load_pair
     from aamtrack.mesh.landmark_fit import LandmarkFitter
     from aamtrack.metrics import PIXEL_ORIGIN, nme
@@ -179,6 +180,8 @@ def source_faces(model, data: Path, n_faces: int, *, max_angle_deg: float = 10.0
                                 points=labels if source == "warped" else None))
         if len(out) == n_faces:
             break
+    if not out:
+        raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     return out
 
 
@@ -224,8 +227,6 @@ def run(model_path: Path, data: Path, *, n_faces: int, grid: str, n_frames: int,
     tracker = Tracker(model)  # (a track's state lives in its generator: one tracker serves every fit and video)
     rng = np.random.default_rng(seed)
     faces = source_faces(model, data, n_faces, band=band, source=source)
-    if not faces:
-        raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     poses = pose_grid(grid)[:limit]
     rows = []
     t_start = time.perf_counter()
@@ -294,6 +295,7 @@ def sweep(model_path: Path, data: Path, *, n_faces: int, amplitude: float, n_fra
     degrees). The renders past about 60 degrees are harder than real heads (no ear, hair or back of the head:
     the mesh ends at the face's side, against the background), so the far bins say how the tracker fails, not
     how often it would on real footage."""
+    from aamtrack.metrics import eye_distance
     from aamtrack.model import load_model
     from aamtrack.track.replay import ReplayFrame
     from aamtrack.track.tracker import Tracker
@@ -304,15 +306,12 @@ def sweep(model_path: Path, data: Path, *, n_faces: int, amplitude: float, n_fra
     tracker = Tracker(model)
     rng = np.random.default_rng(seed)
     faces = source_faces(model, data, n_faces, band=band, source=source)
-    if not faces:
-        raise SystemExit(f"no image in {data} was fitted near frontal to use as a texture")
     yaws = amplitude * np.sin(2 * np.pi * np.arange(n_frames) / n_frames)
     rows = []
     t_start = time.perf_counter()
     for face in faces:
         bg = make_background(background, rng)
-        frontal = model.shape.landmarks(true_q(model, face, (0, 0, 0), False), face.sigma)
-        eye = float(np.linalg.norm(frontal[45] - frontal[36]))
+        eye = float(eye_distance(model.shape.landmarks(true_q(model, face, (0, 0, 0), False), face.sigma)))
         qs = [true_q(model, face, (0, y, 0), False) for y in yaws]
         frames = [ReplayFrame(i, i / 25.0, face.render(q, bg)) for i, q in enumerate(qs)]
         for q, y, r in zip(qs, yaws, tracker.track(frames), strict=True):

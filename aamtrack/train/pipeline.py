@@ -27,7 +27,7 @@ from ..mesh.render import orient_triangles
 from ..mesh.shape_model import N_POSE, ShapeModel, initial_pose
 from ..mesh.skirt import with_skirt
 from ..mesh.texture_map import texture_frame
-from ..metrics import PIXEL_ORIGIN, nme
+from ..metrics import PIXEL_ORIGIN, eye_distance, nme
 from ..model import STAT_NAMES, Couple, Model, Texture, Validator
 from ..search import Searcher
 from .cascade import compose_all, inverse_compose, perturbed_starts, residual_matrix, ridge_fit
@@ -831,7 +831,7 @@ def _landmark_validator(model: Model, gray, pts, P, boxes, box_points, n_orig: i
         img, p0, truth = turned_start(gray[i], P[i], sm, turn_rng, triangles)
         front = p0[:sm.n_q].copy()
         front[1] = 0.0
-        eye = float(np.linalg.norm(np.subtract(*sm.landmarks(front, p0[sm.n_q:])[[45, 36]])))
+        eye = float(eye_distance(sm.landmarks(front, p0[sm.n_q:])))
         return partial(fitted, Levels(img, model.features), p0, truth, False, eye)
 
     tiny_draws = tiny.draws() if tiny is not None and dim_below > 0 else iter(())

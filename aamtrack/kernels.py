@@ -225,6 +225,20 @@ def landmark_gauss_newton_step(x, free_pose, n_coef: int, sigma_fixed, LM, LS, L
                            _in(hi, F64, 1, "hi"))
 
 
+def landmark_solve(x, free_pose, n_coef: int, fit_sigma: bool, sigma_fixed, LM, LS, LA, points, width: float,
+                   lam_c: float, lam_s: float, shape_sd, lo, hi, *, max_iter: int = 200, ftol: float = 1e-12,
+                   xtol: float = 1e-12, gtol: float = 1e-12) -> tuple[float, int]:
+    """x (in place) <- the landmark fit's minimum within [lo, hi] from x, by bounded Levenberg-Marquardt
+    (``aamtrack._kernels.landmark_fit._solve_lm``). Returns (0.5 |r|^2 there, steps tried)."""
+    cost, tried = _lf._solve_lm(_out(x, F64, 1, "x"), _in(free_pose, I64, 1, "free_pose"), int(n_coef),
+                                bool(fit_sigma), _in(sigma_fixed, F64, 1, "sigma_fixed"), _in(LM, F64, 2, "LM"),
+                                _in(LS, F64, 3, "LS"), _in(LA, F64, 3, "LA"), _in(points, F64, 2, "points"),
+                                float(width), float(lam_c), float(lam_s), _in(shape_sd, F64, 1, "shape_sd"),
+                                _in(lo, F64, 1, "lo"), _in(hi, F64, 1, "hi"), int(max_iter), float(ftol),
+                                float(xtol), float(gtol))
+    return float(cost), int(tried)
+
+
 def face_sharpness(image, scale: float, pts, pad: int, k1, k2) -> float:
     """How soft the face's box in ``image`` looks (``aamtrack._kernels.face_stats._sharpness``): image (H, W)
     float32, the points pts (L, 2) in frame pixels, ``pad`` even, k1 and k2 odd Gaussian kernels (n,) float32."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import landmark_gauss_newton_step, landmark_residuals_jacobian
+from ..kernels import landmark_gauss_newton_step, landmark_residuals_jacobian, landmark_solve
 from .shape_model import N_POSE, ShapeModel
 
 LAMBDA_SHAPE = 1e-3
@@ -68,6 +68,11 @@ class LandmarkFitter:
         self._lo_sigma = np.r_[self._lo, -SIGMA_BOUND_SD * self._sd]  # the bounds with the shape units fitted too
         self._hi_sigma = np.r_[self._hi, SIGMA_BOUND_SD * self._sd]
 
+    def bounds(self, fit_sigma: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of the fit's unknowns (``unpack``'s layout): the pose free (the scale as its log), the
+        coefficients within the model's bounds, the shape units (if ``fit_sigma``) within ``SIGMA_BOUND_SD``."""
+        return (self._lo_sigma, self._hi_sigma) if fit_sigma else (self._lo, self._hi)
+
     def refit(self, p: np.ndarray, points: np.ndarray, iterations: int = 1, damping: float = 1e-3, *,
               fit_sigma: bool = False) -> np.ndarray:
         """The search vector p = [q, sigma] with its pose and coefficients moved by ``iterations`` damped
@@ -86,7 +91,7 @@ class LandmarkFitter:
             points = np.ascontiguousarray(points[self._use])
         xs = points[:, 0]
         x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
-        lo, hi = (self._lo_sigma, self._hi_sigma) if fit_sigma else (self._lo, self._hi)
+        lo, hi = self.bounds(fit_sigma)
         if fit_sigma:
             x = np.concatenate((x, sigma))
         i_scale = self._scale_at
@@ -104,19 +109,35 @@ class LandmarkFitter:
             out[n_q:] = x[len(pose) + sm.n_coef:]
         return out
 
+    def solve(self, points: np.ndarray, x0: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray,
+              lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+        """The minimum of ``problem``'s least squares within [lo, hi], from x0 (clipped into them), in one compiled
+        call (``kernels.landmark_solve``: bounded Levenberg-Marquardt, run until a step changes the cost by under
+        1e-12 of it). Returns (x, 0.5 |r|^2 there)."""
+        points, width = self._points(points)
+        x = np.array(x0, dtype=np.float64)
+        cost, _ = landmark_solve(x, np.asarray(free_pose, np.int64), self.sm.n_coef, fit_sigma,
+                                 np.asarray(sigma_fixed, float), self.LM, self.LS, self.LA, points, width,
+                                 LAMBDA_COEF, LAMBDA_SHAPE, self._sd, lo, hi)
+        return x, cost
+
+    def _points(self, points: np.ndarray) -> tuple[np.ndarray, float]:
+        """(the fit's points of (68, 2) points, their width in pixels: the residuals' unit)."""
+        points = np.asarray(points, float)
+        if self._use is not None:
+            points = np.ascontiguousarray(points[self._use])
+        return points, float(np.ptp(points[:, 0]) + 1e-9)
+
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
         """``landmark_problem`` with this model's precomputed arrays: (residuals(x), jacobian(x)), both from the
         compiled ``kernels.landmark_residuals_jacobian``."""
         sm = self.sm
-        points = np.asarray(points, float)
-        if self._use is not None:
-            points = np.ascontiguousarray(points[self._use])
-        width = float(np.ptp(points[:, 0]) + 1e-9)
+        points, width = self._points(points)
         pose = np.asarray(free_pose, np.int64)
         sigma_fixed = np.asarray(sigma_fixed, float)
         n_x = len(pose) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
         n_r = 2 * len(points) + sm.n_coef + (sm.n_shape if fit_sigma else 0)
-        sd = np.asarray(sm.shape_sd, float)  # (n_shape,), empty for 2D
+        sd = self._sd  # (n_shape,), empty for 2D
 
         def run(x, jacobian):
             r, J = np.empty(n_r), np.empty((n_r, n_x) if jacobian else (0, 0))

@@ -133,10 +133,8 @@ def _gauss_newton_step(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, po
 
 
 @numba.njit(**NJIT)
-def _half_cost(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s, shape_sd, r, J):
-    """0.5 |r(x)|^2, the residuals left in r."""
-    _landmark_rj(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s, shape_sd, r, J,
-                 False)
+def _half_square(r):
+    """0.5 |r|^2."""
     c = 0.0
     for i in range(r.shape[0]):
         c += r[i] * r[i]
@@ -160,15 +158,12 @@ def _solve_lm(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, wid
     r_try = np.empty(n_r)
     J = np.empty((n_r, n))
     x_try = np.empty(n)
-    free = np.empty(n, np.bool_)
+    idx = np.empty(n, np.int64)  # the unknowns solved for in a step (its first m entries)
     for i in range(n):
         x[i] = min(max(x[i], lo[i]), hi[i])
     _landmark_rj(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s, shape_sd, r, J,
                  True)
-    cost = 0.0
-    for i in range(n_r):
-        cost += r[i] * r[i]
-    cost *= 0.5
+    cost = _half_square(r)
     A = J.T @ J
     g = J.T @ r
     mu = -1.0
@@ -178,19 +173,12 @@ def _solve_lm(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, wid
         m = 0
         pg = 0.0
         for i in range(n):  # held: at a bound, the descent direction -g pointing out of it
-            held = (x[i] <= lo[i] and g[i] > 0.0) or (x[i] >= hi[i] and g[i] < 0.0)
-            free[i] = not held
-            if not held:
+            if not ((x[i] <= lo[i] and g[i] > 0.0) or (x[i] >= hi[i] and g[i] < 0.0)):
+                idx[m] = i
                 m += 1
                 pg = max(pg, abs(g[i]))
         if m == 0 or pg < gtol:
             break
-        idx = np.empty(m, np.int64)
-        k = 0
-        for i in range(n):
-            if free[i]:
-                idx[k] = i
-                k += 1
         if mu < 0.0:  # the first damping: 1e-3 of each diagonal entry
             mu = 1e-3
         Af = np.empty((m, m))
@@ -209,8 +197,9 @@ def _solve_lm(x, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, wid
             for a in range(m):
                 i = idx[a]
                 x_try[i] = min(max(x[i] + d[a], lo[i]), hi[i])
-            c_try = _half_cost(x_try, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s,
-                               shape_sd, r_try, J)
+            _landmark_rj(x_try, free_pose, n_c, fit_sigma, sigma_fixed, LM, LS, LA, points, width, lam_c, lam_s,
+                         shape_sd, r_try, J, False)
+            c_try = _half_square(r_try)
             if c_try < cost:
                 # the model's predicted fall for the step taken (its clipped form): -g.s - 0.5 s^T A s
                 pred = 0.0

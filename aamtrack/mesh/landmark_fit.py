@@ -86,17 +86,13 @@ class LandmarkFitter:
         fit_sigma = fit_sigma and sm.n_shape > 0
         p = np.asarray(p, float)
         sigma = np.ascontiguousarray(p[n_q:])
-        points = np.asarray(points, float)
-        if self._use is not None:
-            points = np.ascontiguousarray(points[self._use])
-        xs = points[:, 0]
+        points, width = self._points(points)
         x = np.concatenate((p[pose], p[N_POSE:n_q]))  # [free pose, coefficients]: ``unpack``'s layout
         lo, hi = self.bounds(fit_sigma)
         if fit_sigma:
             x = np.concatenate((x, sigma))
         i_scale = self._scale_at
         x[i_scale] = np.log(max(float(p[3]), 1e-12))
-        width = float(xs.max() - xs.min()) + 1e-9
         for _ in range(iterations):
             landmark_gauss_newton_step(x, pose, sm.n_coef, sigma, self.LM, self.LS, self.LA, points,
                                        width, LAMBDA_COEF, damping, lo, hi, fit_sigma=fit_sigma,
@@ -109,16 +105,17 @@ class LandmarkFitter:
             out[n_q:] = x[len(pose) + sm.n_coef:]
         return out
 
-    def solve(self, points: np.ndarray, x0: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray,
-              lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
-        """The minimum of ``problem``'s least squares within [lo, hi], from x0 (clipped into them), in one compiled
-        call (``kernels.landmark_solve``: bounded Levenberg-Marquardt, run until a step changes the cost by under
-        1e-12 of it). Returns (x, 0.5 |r|^2 there)."""
+    def solve(self, points: np.ndarray, x0: np.ndarray, fit_sigma: bool,
+              sigma_fixed: np.ndarray) -> tuple[np.ndarray, float]:
+        """The minimum of ``problem``'s least squares (all the model's free pose entries, ``free_pose``) within
+        ``bounds``, from x0 (clipped into them), in one compiled call (``kernels.landmark_solve``: bounded
+        Levenberg-Marquardt, run until a step changes the cost by under 1e-12 of it). Returns (x, 0.5 |r|^2
+        there)."""
         points, width = self._points(points)
         x = np.array(x0, dtype=np.float64)
-        cost, _ = landmark_solve(x, np.asarray(free_pose, np.int64), self.sm.n_coef, fit_sigma,
-                                 np.asarray(sigma_fixed, float), self.LM, self.LS, self.LA, points, width,
-                                 LAMBDA_COEF, LAMBDA_SHAPE, self._sd, lo, hi)
+        cost, _ = landmark_solve(x, self._free, self.sm.n_coef, fit_sigma, np.asarray(sigma_fixed, float), self.LM,
+                                 self.LS, self.LA, points, width, LAMBDA_COEF, LAMBDA_SHAPE, self._sd,
+                                 *self.bounds(fit_sigma))
         return x, cost
 
     def _points(self, points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -126,7 +123,8 @@ class LandmarkFitter:
         points = np.asarray(points, float)
         if self._use is not None:
             points = np.ascontiguousarray(points[self._use])
-        return points, float(np.ptp(points[:, 0]) + 1e-9)
+        xs = points[:, 0]
+        return points, float(xs.max() - xs.min()) + 1e-9
 
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
         """``landmark_problem`` with this model's precomputed arrays: (residuals(x), jacobian(x)), both from the

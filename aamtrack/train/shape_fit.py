@@ -50,7 +50,7 @@ def fit_landmarks(sm: ShapeModel, points: np.ndarray, *, shape_params: np.ndarra
         if fit_sigma:
             x0 = np.r_[x0, sigma_fixed]
         x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-        x, cost = fitter.solve(points, x0, free_pose, fit_sigma, sigma_fixed, lo, hi)
+        x, cost = fitter.solve(points, x0, fit_sigma, sigma_fixed)
         if best is None or cost < best[1]:
             best = (x, cost)
     q, sigma = unpack(best[0], sm, free_pose, fit_sigma, sigma_fixed)

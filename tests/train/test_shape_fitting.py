@@ -101,7 +101,7 @@ def test_compiled_solver_reaches_scipys_least_squares_minimum_with_bounds_active
         x0 = np.clip(np.r_[0.0, 0.0, 0.0, np.log(140.0), pts.mean(0), 0.0, 0.0, np.zeros(3)], lo + 1e-9, hi - 1e-9)
         residuals, jacobian = landmark_problem(sm, pts, pose, True, np.zeros(3))
         ref = least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), x_scale="jac", max_nfev=200)
-        x, cost = fitter.solve(pts, x0, pose, True, np.zeros(3), lo, hi)
+        x, cost = fitter.solve(pts, x0, True, np.zeros(3))
         assert np.all(x >= lo) and np.all(x <= hi)
         assert abs(cost - 0.5 * residuals(x) @ residuals(x)) < 1e-12 * max(cost, 1e-12)  # the cost it returns is x's
         assert cost <= ref.cost * (1 + 1e-9)  # as low as scipy's (to its stopping tolerance)

@@ -11,7 +11,16 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from _common import run_script  # noqa: E402
-from accuracy import AamRun, jitter_vs_reference, main, run_aamtrack, summarize_stills, video_scores  # noqa: E402
+from accuracy import (  # noqa: E402
+    AamRun,
+    by_turn_and_region,
+    jitter_vs_reference,
+    main,
+    run_aamtrack,
+    summarize_stills,
+    video_scores,
+)
+from accuracy import label_turn as accuracy_label_turn  # noqa: E402
 from conftest import SEED  # noqa: E402
 
 
@@ -241,3 +250,47 @@ def test_benchmark_scripts_turn_input_errors_into_one_line_and_leave_bugs_alone(
 
     with pytest.raises(ZeroDivisionError):
         run_script(bug, "bench")
+
+
+# ------------------------------------------------------------------------------ label_turn, by_turn_and_region
+
+
+def _symmetric_face() -> np.ndarray:
+    """A (68, 2) shape symmetric about x = 0 for the points label_turn reads: the nose tip (30) on the axis, the
+    jaw line's ends (0, 16) at x = -+40, y = 0; the outer eye corners (36, 45) 40 px apart."""
+    face = _face68(eye_gap=40.0)
+    face[30] = (0.0, 20.0)
+    face[0], face[16] = (-40.0, 0.0), (40.0, 0.0)
+    return face
+
+
+def test_label_turn_is_zero_for_a_frontal_face_and_signed_by_the_side_turned_away():
+    frontal = _symmetric_face()
+    turned = frontal.copy()
+    turned[30, 0] = 15.0  # nose tip towards point 16: farther from 0 (L = hypot(55, 20)) than from 16 (hypot(25, 20))
+    other = frontal.copy()
+    other[30, 0] = -15.0  # the same turn the other way: the distances swap
+    t = accuracy_label_turn(np.stack([frontal, turned, other]))
+    L, R = math.hypot(55.0, 20.0), math.hypot(25.0, 20.0)
+    assert t[0] == pytest.approx(0.0, abs=1e-12)
+    assert t[1] == pytest.approx((L - R) / (L + R)) and t[1] > 0.2
+    assert t[2] == pytest.approx(-t[1])
+    with pytest.raises(ValueError, match="68, 2"):
+        accuracy_label_turn(np.zeros((2, 5, 2)))
+
+
+def test_by_turn_and_region_splits_fits_by_turn_and_region():
+    # 3 labelled faces, turns 0.0, 0.2 and -0.5 (bins 0-0.15, 0.15-0.30 and 0.45-); eye distance 40 px.
+    ref = np.stack([_symmetric_face()] * 3)
+    pred = ref.copy()
+    pred[1, :17, 0] += 4.0   # face 1: its 17 jaw points 4 px off = 0.1 eye distances, NME 17 * 0.1 / 68 = 0.025
+    pred[2] = np.nan         # face 2: not fitted
+    rows = by_turn_and_region(pred, ref, [0.0, 0.2, -0.5])
+    assert [r["n_images"] for r in rows] == [1, 1, 0, 1, 3] and [r["n_fitted"] for r in rows] == [1, 1, 0, 0, 2]
+    assert rows[0]["nme_mean"] == pytest.approx(0.0) and rows[1]["nme_mean"] == pytest.approx(0.025)
+    assert rows[1]["regions"]["jaw"] == pytest.approx(0.1) and rows[1]["regions"]["eyes"] == pytest.approx(0.0)
+    assert math.isnan(rows[2]["nme_mean"]) and math.isnan(rows[3]["nme_mean"])  # nothing fitted there
+    assert rows[4]["turn_to"] == math.inf and rows[4]["nme_mean"] == pytest.approx(0.0125)  # all: (0 + 0.025) / 2
+    assert rows[4]["regions"]["jaw"] == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="differ in number"):
+        by_turn_and_region(pred, ref, [0.0, 0.2])

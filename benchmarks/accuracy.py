@@ -456,13 +456,14 @@ def turn_table(rows) -> str:
     """``by_turn_and_region``'s rows of each model, one line a bin."""
     regions = list(rows[0]["by_turn"][0]["regions"]) if rows and rows[0]["by_turn"][0]["regions"] else \
         ["jaw", "brows", "nose", "eyes", "mouth"]
-    lines = [f"{'model':<12} {'turn':>11} {'images':>6} {'fitted':>6} {'NME mean':>8} "
+    w = max([12, *(len(r["name"]) for r in rows)])
+    lines = [f"{'model':<{w}} {'turn':>11} {'images':>6} {'fitted':>6} {'NME mean':>8} "
              + " ".join(f"{k:>7}" for k in regions)]
     for r in rows:
         for b in r["by_turn"]:
             span = "all" if b["turn_from"] == 0.0 and b["turn_to"] == math.inf else \
                 f"{b['turn_from']:.2f}-{'' if b['turn_to'] == math.inf else format(b['turn_to'], '.2f')}"
-            lines.append(f"{r['name']:<12} {span:>11} {b['n_images']:>6} {b['n_fitted']:>6} "
+            lines.append(f"{r['name']:<{w}} {span:>11} {b['n_images']:>6} {b['n_fitted']:>6} "
                          f"{_fmt(b['nme_mean'], '.4f'):>8} "
                          + " ".join(f"{_fmt(b['regions'].get(k), '.4f'):>7}" for k in regions))
     return "\n".join(lines)

@@ -102,6 +102,7 @@ STILLS = "300w/helen_test"
 _SUBSET = list(MEDIAPIPE_SUBSET)
 
 from _common import machine_name, write_json  # noqa: E402
+from accuracy import by_turn_and_region, label_turn, turn_table  # noqa: E402
 from peer_runners import (  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
     PeerRun,
     PeerUnavailable,
@@ -421,6 +422,13 @@ def main(argv=None) -> int:
         print(f"\n300w/helen_test, {len(images)} stills 360x360; ref = human iBUG-68 labels (.pts as written)")
         print(format_table(still_rows))
         result["stills_rows"] = still_rows
+        # by how far the labelled face is turned and by region (``accuracy.label_turn``), the 68-point runs
+        turn_rows = [{"name": r.name, "by_turn": by_turn_and_region(r.landmarks, human, label_turn(human))}
+                     for r in still_runs if r.landmarks.shape[1:] == (68, 2)]
+        if turn_rows:
+            print("\nby head turn read from the labels (accuracy.label_turn) and by region, over fitted stills")
+            print(turn_table(turn_rows))
+            result["stills_by_turn"] = turn_rows
 
     if args.json is not None:
         write_json(args.json, result, indent=2)

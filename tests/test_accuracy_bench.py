@@ -18,6 +18,7 @@ from accuracy import (  # noqa: E402
     main,
     run_aamtrack,
     summarize_stills,
+    turn_table,
     video_scores,
 )
 from accuracy import label_turn as accuracy_label_turn  # noqa: E402
@@ -294,3 +295,10 @@ def test_by_turn_and_region_splits_fits_by_turn_and_region():
     assert rows[4]["regions"]["jaw"] == pytest.approx(0.05)
     with pytest.raises(ValueError, match="differ in number"):
         by_turn_and_region(pred, ref, [0.0, 0.2])
+    # the printed table: a header, then one line a bin per model, "-" where none was fitted; columns aligned
+    # past a model's name longer than the default width
+    lines = turn_table([{"name": "a_model_name_of_26_letters", "by_turn": rows}]).splitlines()
+    assert len(lines) == 1 + len(rows) and lines[0].split()[:2] == ["model", "turn"]
+    assert lines[2].split()[1:7] == ["0.15-0.30", "1", "1", "0.0250", "0.1000", "0.0000"]
+    assert lines[3].split()[1:5] == ["0.30-0.45", "0", "0", "-"] and lines[5].split()[1:4] == ["all", "3", "2"]
+    assert len({len(line) for line in lines}) == 1  # every line as wide as the header

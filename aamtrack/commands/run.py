@@ -51,7 +51,8 @@ EPILOG = """examples:
 outputs (in --out-dir, default <input>_aamtrack/ next to the input):
   <name>.csv            one row per frame: status, confidence, pose, 68 landmarks (and 3D points, units)
   <name>.json           summary: frames read / tracked / lost, re-detections, timings, outputs
-  <name>_overlay.webm   with --video (.mp4 where OpenCV has an H.264 encoder; mp4v .mp4 as a last resort)
+  <name>_overlay.mp4    with --video: H.264 with PyAV installed (pip install "aamtrack[video]"), else
+                        <name>_overlay.webm (OpenCV's VP8, several times slower to write)
   <name>_overlay.mp4    with --fast-video (mp4v)
   <name>_pts/           with --pts: one iBUG .pts file per tracked frame
   report.html           with --report: plots, lost stretches with thumbnails, summary (needs matplotlib)
@@ -88,9 +89,10 @@ def register(sub) -> None:
     p.add_argument("--video", action="store_true",
                    help="also write an overlay video: mesh, landmarks, pose axes, frame number, status, confidence")
     p.add_argument("--fast-video", action="store_true",
-                   help="the same overlay video in mp4v (.mp4): about 10x faster to write than the default VP8 "
-                        "(.webm), which bounds a run with --video at larger sizes; VLC, mpv and QuickTime play it, "
-                        "web browsers do not (implies --video)")
+                   help="the same overlay video in mp4v (.mp4): without PyAV about 10x faster to write than "
+                        "OpenCV's VP8 (.webm), which bounds a run with --video at larger sizes; VLC, mpv and "
+                        "QuickTime play it, web browsers do not (implies --video). With PyAV (pip install "
+                        "\"aamtrack[video]\") --video writes H.264 about as fast")
     p.add_argument("--pts", action="store_true", help="also write one iBUG .pts file per tracked frame")
     p.add_argument("--report", action="store_true",
                    help="also write report.html: pose, animation units and confidence over time, lost and "

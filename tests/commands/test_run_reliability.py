@@ -19,6 +19,7 @@ from notices import KERNEL_NOTICES, stderr_lines
 import synth
 from aamtrack.cli import main
 from aamtrack.io.csvout import TrackingCsvWriter, read_tracking_csv
+from aamtrack.io import overlay as overlay_module
 
 N = 8
 
@@ -157,9 +158,15 @@ def test_disk_full_leaves_nothing(tmp_path, video, model_file, capsys, monkeypat
     assert files_below(out) == ["clip.csv"] and (out / "clip.csv").read_text() == "previous run\n"
 
 
-def test_overlay_on_a_full_tmpfs_leaves_nothing(tmp_path, video, model_file, capsys):
+@pytest.mark.parametrize("pyav", [True, False])
+def test_overlay_on_a_full_tmpfs_leaves_nothing(tmp_path, video, model_file, capsys, monkeypatch, pyav):
     # A real full disk (OpenCV's native writer is out of reach of the Python-level disk_full): 24 kB hold
-    # the CSV but not the overlay, whose writer says nothing; the read-back check finds it broken.
+    # the CSV but not the overlay. OpenCV's writer says nothing and the read-back check finds the file broken;
+    # PyAV's (the video extra, in the test extra) raises at the write that fails.
+    if pyav:
+        pytest.importorskip("av", reason="PyAV (the video extra) is not installed")
+    else:
+        monkeypatch.setattr(overlay_module, "_pyav", lambda: None)
     with tiny_tmpfs(tmp_path / "small", "24k") as out:
         code = run(video, "--model", model_file, "--out-dir", out, "--video")
         left = files_below(out)
@@ -189,6 +196,7 @@ def test_overlay_that_does_not_hold_every_frame_is_refused(tmp_path, video, mode
             self.w.release()
 
     monkeypatch.setattr(cv2, "VideoWriter", Forgetful)
+    monkeypatch.setattr(overlay_module, "_pyav", lambda: None)  # OpenCV's writer, not PyAV's (which raises)
     out = tmp_path / "out"
     assert run(video, "--model", model_file, "--out-dir", out, "--video") == 1
     one_error_line(capsys, "clip_overlay.", "3 of 8 frames")

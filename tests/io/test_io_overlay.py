@@ -94,3 +94,41 @@ def test_pose_axes_follow_the_model_rotation():
     ends = axes_endpoints(landmarks, np.array([0.0, 0.0, np.pi / 2]))  # rolled 90 degrees: x points up
     assert np.allclose(ends[1] - ends[0], [0, -half])
     assert axes_endpoints(np.full((68, 2), np.nan), np.zeros(3)) is None
+
+
+@pytest.mark.parametrize("suffix,fourcc", [(".webm", "VP80"), (".mp4", "avc1")])
+def test_pyav_writes_the_browser_codecs_and_opencv_reads_every_frame_back(tmp_path, suffix, fourcc):
+    """With PyAV installed (the ``video`` extra; the ``test`` extra has it) .webm and .mp4 overlays go through its
+    VP8 and H.264 encoders; OpenCV reads them back frame for frame, each frame's picture where it was written."""
+    pytest.importorskip("av", reason="PyAV (the video extra) is not installed")
+    levels = [30 * i for i in range(8)]
+    w, h = 320, 240  # (at 128 x 64 both encoders' rate control lags flat frames by tens of grey levels)
+    with OverlayWriter(tmp_path / f"overlay{suffix}", 25.0, (w, h)) as writer:
+        for i, level in enumerate(levels):
+            writer.write(np.full((h, w, 3), level, np.uint8),
+                         FrameResult(frame=i, timestamp=i / 25.0, status="dropped"))
+    assert (writer.backend, writer.fourcc, writer.path.name) == ("pyav", fourcc, f"overlay{suffix}")
+    assert list(tmp_path.iterdir()) == [writer.path]
+    with open_frames(writer.path) as source:
+        assert (source.width, source.height, source.fps) == (w, h, 25.0)
+        frames = [f.image for f in source]
+    assert len(frames) == len(levels)
+    for image, level in zip(frames, levels, strict=True):  # below the banner, inside the border: the grey levels,
+        assert abs(float(np.median(image[h // 2:h - 12, w // 4:3 * w // 4])) - level) < 6  # lossy (3 levels written)
+
+
+def test_odd_sizes_and_a_missing_pyav_take_opencvs_writer(tmp_path, monkeypatch):
+    """4:2:0 video needs even sides (x264 refuses odd ones): an odd-sized overlay is OpenCV's; and without PyAV,
+    a .webm overlay is OpenCV's VP8 as before the video extra."""
+    from aamtrack.io import overlay
+
+    rng = np.random.default_rng(SEED)
+    with OverlayWriter(tmp_path / "odd.webm", 25.0, (WIDTH + 1, HEIGHT)) as writer:
+        writer.write(index_image(0, rng), _result(rng))
+    assert writer.backend == "opencv" and writer.n_frames == 1
+    monkeypatch.setattr(overlay, "_pyav", lambda: None)
+    with OverlayWriter(tmp_path / "plain.webm", 25.0, (WIDTH, HEIGHT)) as writer:
+        writer.write(index_image(1, rng), _result(rng))
+    assert (writer.backend, writer.fourcc) == ("opencv", "VP80")
+    with open_frames(writer.path) as source:
+        assert len(list(source)) == 1

@@ -305,8 +305,9 @@ class OverlayWriter(TemporaryOutput):
     Parameters
     ----------
     path : str or PathLike
-        Destination, normally ``.mp4`` or ``.webm``. The first codec OpenCV can open of :func:`codec_attempts`
-        is used, and the suffix follows it: for ``.mp4``, H.264 (``avc1``) where OpenCV has an encoder for it,
+        Destination, normally ``.mp4`` or ``.webm``. With PyAV installed, H.264 for ``.mp4`` and VP8 for
+        ``.webm`` through it (:data:`PYAV_CODECS`; frames of even width and height). Else the first codec OpenCV
+        can open of :func:`codec_attempts` is used, and the suffix follows it: for ``.mp4``, H.264 (``avc1``) where OpenCV has an encoder for it,
         else VP8 in ``.webm`` (the pip wheels of OpenCV have VP8 but no H.264 encoder), else ``mp4v`` (logged as
         a warning: browsers do not play it), else MJPG in ``.avi``. See ``self.path`` and ``self.fourcc``.
     fps : float

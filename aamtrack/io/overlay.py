@@ -223,6 +223,11 @@ def codec_attempts(path: Path, *, fast: bool = False) -> list[tuple[Path, str]]:
 PYAV_CODECS = {".webm": ("libvpx", "VP80", {"deadline": "realtime", "cpu-used": "8"}),
                ".mp4": ("libx264", "avc1", {"preset": "ultrafast", "crf": "23"})}
 _VP8_BITS_PER_PIXEL = 0.1  # per pixel and frame: 5.2 Mbit/s at 1920x1080 and 25 frames a second
+#: OpenCV's VP8 at about 7.5 million pixels a second (the figures above: 3.8 frames a second at 1920x1080, 7.9 at
+#: 1280x720, 14.6 at 960x540): from 1280x720 up an overlay through it is slower than real time, and a run with
+#: --video says what would be faster
+VP8_PIXELS_PER_SECOND = 7.5e6
+SLOW_VP8_PIXELS = 1280 * 720
 
 
 def _pyav():
@@ -367,6 +372,11 @@ class OverlayWriter(TemporaryOutput):
                 if fourcc not in _BROWSER_CODECS and path.suffix.lower() != ".avi" and not fast:
                     logger.warning("%s: this OpenCV build has no H.264 or VP8 encoder; writing %s to %s, which "
                                    "web browsers do not play (VLC and ffplay do)", path, fourcc, target)
+                elif fourcc in ("VP80", "VP90") and self.size[0] * self.size[1] >= SLOW_VP8_PIXELS:
+                    logger.warning("overlay video: OpenCV's VP8 writes about %.0f frames a second at %dx%d, slower "
+                                   "than the tracker; pip install \"aamtrack[video]\" writes H.264 several times "
+                                   "faster (or use --fast-video)",
+                                   VP8_PIXELS_PER_SECOND / (self.size[0] * self.size[1]), *self.size)
                 self.path, self._tmp, self._handle, self.fourcc = target, tmp, writer, fourcc
                 break
             writer.release()

@@ -132,3 +132,30 @@ def test_odd_sizes_and_a_missing_pyav_take_opencvs_writer(tmp_path, monkeypatch)
     assert (writer.backend, writer.fourcc) == ("opencv", "VP80")
     with open_frames(writer.path) as source:
         assert len(list(source)) == 1
+
+
+def test_a_slow_vp8_overlay_says_what_is_faster(tmp_path, monkeypatch, caplog):
+    """OpenCV's VP8 (no PyAV) from 1280x720 up writes slower than the tracker tracks: one warning naming the video
+    extra; not below that size, and not through PyAV."""
+    from aamtrack.io import overlay
+
+    def write(name, size):
+        with OverlayWriter(tmp_path / name, 25.0, size) as writer:
+            writer.write(None, FrameResult(frame=0, timestamp=0.0, status="lost", reason="no face detected"))
+        return writer
+
+    monkeypatch.setattr(overlay, "_pyav", lambda: None)
+    with caplog.at_level("WARNING", logger="aamtrack.io.overlay"):
+        assert write("big.webm", (1280, 720)).fourcc == "VP80"
+    assert [r.getMessage() for r in caplog.records] == [
+        "overlay video: OpenCV's VP8 writes about 8 frames a second at 1280x720, slower than the tracker; pip "
+        "install \"aamtrack[video]\" writes H.264 several times faster (or use --fast-video)"]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="aamtrack.io.overlay"):
+        write("small.webm", (640, 480))
+    assert not caplog.records
+    monkeypatch.undo()
+    if overlay._pyav() is not None:
+        with caplog.at_level("WARNING", logger="aamtrack.io.overlay"):
+            assert write("fast.webm", (1280, 720)).backend == "pyav"
+        assert not caplog.records

@@ -37,12 +37,6 @@ def unpack(x, sm: ShapeModel, free_pose, fit_sigma, sigma_fixed):
     return q, sigma
 
 
-def landmark_problem(sm: ShapeModel, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
-    """(residuals(x), jacobian(x)) of the fit of x = [free pose (log-scale for the scale), coefficients, sigma if
-    ``fit_sigma``] to (68, 2) points (module docstring)."""
-    return LandmarkFitter(sm).problem(points, free_pose, fit_sigma, sigma_fixed)
-
-
 class LandmarkFitter:
     """A shape model's landmarks in the form the fit needs, computed once: L M, L S and L A (the landmark map
     applied to the mean, the shape units and the animation units or PCA modes)."""
@@ -127,8 +121,10 @@ class LandmarkFitter:
         return points, float(xs.max() - xs.min()) + 1e-9
 
     def problem(self, points: np.ndarray, free_pose: list, fit_sigma: bool, sigma_fixed: np.ndarray):
-        """``landmark_problem`` with this model's precomputed arrays: (residuals(x), jacobian(x)), both from the
-        compiled ``kernels.landmark_residuals_jacobian``."""
+        """(residuals(x), jacobian(x)) of the fit of x = [free pose entries ``free_pose`` (log-scale for the
+        scale), coefficients, sigma if ``fit_sigma``] to (68, 2) points (module docstring), both from the compiled
+        ``kernels.landmark_residuals_jacobian``: what ``scipy.optimize.least_squares`` takes (the tests'
+        reference for ``solve``)."""
         sm = self.sm
         points, width = self._points(points)
         pose = np.asarray(free_pose, np.int64)

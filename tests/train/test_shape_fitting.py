@@ -60,13 +60,13 @@ def test_candide_fit_recovers_projection():
 
 
 def test_analytic_jacobian_matches_finite_differences():
-    from aamtrack.mesh.landmark_fit import landmark_problem
+    from aamtrack.mesh.landmark_fit import LandmarkFitter
 
     rng = np.random.default_rng(SEED)
     sm = synthetic_3d_model(rng)
     pts = face_layout() * np.array([120.0, -120.0]) + 100 + rng.normal(0, 2, (68, 2))
     for free_pose, fit_sigma in (([0, 1, 2, 3, 4, 5], True), ([0, 1, 2, 3, 4, 5], False), ([2, 3, 4, 5], True)):
-        residuals, jacobian = landmark_problem(sm, pts, free_pose, fit_sigma, np.zeros(3))
+        residuals, jacobian = LandmarkFitter(sm).problem(pts, free_pose, fit_sigma, np.zeros(3))
         n = len(free_pose) + 2 + (3 if fit_sigma else 0)
         x = rng.normal(0, 0.2, n)
         x[free_pose.index(3)] = np.log(110.0)
@@ -85,7 +85,7 @@ def test_compiled_solver_reaches_scipys_least_squares_minimum_with_bounds_active
     and shape units beyond their bounds, so that the bounds hold some unknowns at the minimum: the same minimum."""
     from scipy.optimize import least_squares
 
-    from aamtrack.mesh.landmark_fit import LandmarkFitter, free_pose, landmark_problem
+    from aamtrack.mesh.landmark_fit import LandmarkFitter, free_pose
 
     rng = np.random.default_rng(SEED)
     sm = synthetic_3d_model(rng)
@@ -99,7 +99,7 @@ def test_compiled_solver_reaches_scipys_least_squares_minimum_with_bounds_active
         pts = sm.landmarks(q, sigma) + rng.normal(0, 1.0, (68, 2))
         lo, hi = fitter.bounds(True)
         x0 = np.clip(np.r_[0.0, 0.0, 0.0, np.log(140.0), pts.mean(0), 0.0, 0.0, np.zeros(3)], lo + 1e-9, hi - 1e-9)
-        residuals, jacobian = landmark_problem(sm, pts, pose, True, np.zeros(3))
+        residuals, jacobian = fitter.problem(pts, pose, True, np.zeros(3))
         ref = least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), x_scale="jac", max_nfev=200)
         x, cost = fitter.solve(pts, x0, True, np.zeros(3))
         assert np.all(x >= lo) and np.all(x <= hi)

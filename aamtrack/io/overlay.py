@@ -230,6 +230,11 @@ VP8_PIXELS_PER_SECOND = 7.5e6
 SLOW_VP8_PIXELS = 1280 * 720
 
 
+def _temporary_name(suffix: str) -> str:
+    """An ASCII file name for an overlay being written, hidden, with the video's suffix (the container)."""
+    return f".overlay.{secrets.token_hex(4)}.tmp{suffix}"
+
+
 def _pyav():
     """The ``av`` module (PyAV), or None where it is not installed."""
     try:
@@ -351,7 +356,7 @@ class OverlayWriter(TemporaryOutput):
         # odd ones), else OpenCV as below
         if av is not None and suffix in PYAV_CODECS and self.size[0] % 2 == 0 and self.size[1] % 2 == 0:
             check_replaceable(path)
-            tmp = path.parent / f".overlay.{secrets.token_hex(4)}.tmp{path.suffix}"
+            tmp = path.parent / _temporary_name(path.suffix)
             try:
                 self._handle = _PyAVWriter(av, str(tmp), suffix, float(fps), self.size, str(path))
             except OutputError as exc:
@@ -363,7 +368,7 @@ class OverlayWriter(TemporaryOutput):
         for target, fourcc in attempts:
             check_replaceable(target)
             # An ASCII temporary name, handed to OpenCV through a name it can take (see opencv_path).
-            name = f".overlay.{secrets.token_hex(4)}.tmp{target.suffix}"
+            name = _temporary_name(target.suffix)
             tmp = target.parent / name
             with opencv_path(target.parent, directory=True) as folder, _quiet_stderr():
                 # _quiet_stderr: FFmpeg prints to the C stderr for every encoder it cannot open
